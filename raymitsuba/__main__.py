@@ -1,0 +1,3 @@
+from raymitsuba.cli import main
+
+main()
