@@ -1,0 +1,46 @@
+"""raymitsuba's Mitsuba plugins, one per file; :func:`register` makes them known to Mitsuba.
+
+=================  =========  ===============================================
+plugin name        kind       file
+=================  =========  ===============================================
+``raywhitted``     integrator ``whitted.py``: the recursive ray tracer
+``rayphong``       BSDF       ``phong.py``: the .RAY material
+``raytextured``    BSDF       ``textured.py``: a material times textures
+``raychecker``     texture    ``checkerboard.py``: the plane checkerboard
+``raylight``       emitter    ``light.py``: ambient/point/directional/spot
+``raybackground``  emitter    ``background.py``: the background color
+``rayellipsoid``   shape      ``ellipsoid.py``: sphere under any transform
+``raycylinder``    shape      ``cylinder.py``: closed cylinder
+``raycone``        shape      ``cone.py``: closed cone
+``rayplane``       shape      ``plane.py``: the infinite plane
+``raytriangles``   shape      ``triangles.py``: merged triangles
+=================  =========  ===============================================
+
+Import this package only after a Mitsuba variant is set (see raymitsuba.backend).
+"""
+
+_registered = None
+
+
+def register():
+    """Register every plugin with the current Mitsuba variant (once per variant)."""
+    global _registered
+    import mitsuba as mi
+
+    if _registered == mi.variant():
+        return
+    from . import (background, checkerboard, cone, cylinder, ellipsoid, light, phong, plane,
+                   textured, triangles, whitted)
+
+    mi.register_integrator("raywhitted", lambda props: whitted.Whitted(props))
+    mi.register_bsdf("rayphong", lambda props: phong.Phong(props))
+    mi.register_bsdf("raytextured", lambda props: textured.Textured(props))
+    mi.register_texture("raychecker", lambda props: checkerboard.Checkerboard(props))
+    mi.register_emitter("raylight", lambda props: light.Light(props))
+    mi.register_emitter("raybackground", lambda props: background.Background(props))
+    mi.register_shape("rayellipsoid", lambda props: ellipsoid.Ellipsoid(props))
+    mi.register_shape("raycylinder", lambda props: cylinder.Cylinder(props))
+    mi.register_shape("raycone", lambda props: cone.Cone(props))
+    mi.register_shape("rayplane", lambda props: plane.Plane(props))
+    mi.register_shape("raytriangles", lambda props: triangles.Triangles(props))
+    _registered = mi.variant()

@@ -1,0 +1,23 @@
+"""``raybackground``: the color of every ray, primary or secondary, that hits nothing.
+
+Parameters: ``color`` (Color3f, default black; differentiable). Read by the
+Whitted integrator; not a radiometric emitter.
+"""
+
+import mitsuba as mi
+
+
+class Background(mi.Emitter):
+    def __init__(self, props):
+        super().__init__(props)
+        self.color = mi.Color3f(props.get("color", mi.ScalarColor3f(0.0)))
+        self.m_flags = mi.EmitterFlags.Empty
+
+    def traverse(self, callback):
+        callback.put("color", self.color, mi.ParamFlags.Differentiable)
+
+    def parameters_changed(self, keys):
+        pass
+
+    def to_string(self):
+        return f"Background[color={self.color}]"

@@ -1,0 +1,41 @@
+"""``raychecker``: the .RAY checkerboard as a Mitsuba texture.
+
+Evaluates to 1 on the "even" squares and 0 on the "odd" ones, for a plane's
+texture coordinates, which are its object-space (x, z) (see ``plane.py``)::
+
+    checker(u, v) = 1  if floor(u / s) + floor(v / s) is even,  else 0
+
+so that the material's base color C times it gives C and black squares, as the
+format says. Parameters: ``size`` (float, > 0): the side s of a square, in the
+plane's object space.
+"""
+
+import drjit as dr
+import mitsuba as mi
+
+
+class Checkerboard(mi.Texture):
+    def __init__(self, props):
+        super().__init__(props)
+        self.size = props.get("size", 1.0)
+        if not self.size > 0:
+            raise ValueError("raychecker: size must be > 0")
+
+    def parity(self, uv):
+        cell = dr.floor(uv.x / self.size) + dr.floor(uv.y / self.size)
+        return cell - 2.0 * dr.floor(cell * 0.5)  # 0 for even, 1 for odd (exact on integers)
+
+    def eval_1(self, si, active=True):
+        return 1.0 - self.parity(si.uv)
+
+    def eval(self, si, active=True):
+        return mi.Color3f(self.eval_1(si, active))
+
+    def mean(self):
+        return 0.5
+
+    def traverse(self, callback):
+        pass
+
+    def to_string(self):
+        return f"Checkerboard[size={self.size}]"

@@ -1,0 +1,67 @@
+"""The Python API: load a .RAY scene into Mitsuba, render it, get at its parameters.
+
+    loaded = raymitsuba.load("scenes/whitted.ray", width=256, height=256)
+    image = raymitsuba.render(loaded)             # dr TensorXf, (H, W, 3), linear
+    loaded.params["mat1.color"]                   # Color3f, differentiable
+    loaded.params["light1.position"]
+
+Parameter keys (``mi.traverse`` of the scene): ``mat{i}.{field}`` with i the
+material's number in file order (``mat0`` is the default material) and field
+one of color, ambient_mix, diffuse_mix, specular_mix, phong_coeff,
+reflectivity, refractivity, ior; ``light{j}.color``, ``.position``,
+``.direction``, ``.shape_coefficient`` with j counting ``light`` lines from 1;
+``background.color``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+from raymitsuba.model import Scene
+from raymitsuba.translate import Options, translate
+
+
+@dataclass
+class Loaded:
+    model: Scene  # the parsed scene
+    options: Options
+    scene_dict: dict  # what mi.load_dict received
+    scene: Any  # mi.Scene
+    params: Any  # mi.SceneParameters
+
+    @property
+    def integrator(self):
+        return self.scene.integrator()
+
+
+def parse_any(source) -> Scene:
+    from raymitsuba import parser
+
+    if isinstance(source, Scene):
+        return source
+    return parser.parse(source)
+
+
+def load(source, width=512, height=512, spp=1, max_depth=5, srgb=False) -> Loaded:
+    """Parse (a path, .RAY text or a Scene) and load it into Mitsuba."""
+    from raymitsuba.backend import mitsuba
+
+    model = parse_any(source)
+    mi = mitsuba()
+    options = Options(width=int(width), height=int(height), spp=int(spp),
+                      max_depth=int(max_depth), srgb=bool(srgb))
+    scene_dict = translate(model, options)
+    scene = mi.load_dict(scene_dict)
+    return Loaded(model, options, scene_dict, scene, mi.traverse(scene))
+
+
+def render(loaded: Loaded, spp: int | None = None, params=None):
+    """The image as a Dr.Jit TensorXf (H, W, 3), linear. Differentiable w.r.t. ``params``
+    (default: all of ``loaded.params``) through ``mi.render``."""
+    from raymitsuba.backend import mitsuba
+
+    mi = mitsuba()
+    return mi.render(loaded.scene, params=loaded.params if params is None else params,
+                     spp=int(spp or loaded.options.spp))

@@ -1,0 +1,109 @@
+"""Image files: writing renders (atomically) and reading targets.
+
+Values are linear throughout the renderer. By output extension:
+
+* ``.exr``: float32 linear RGB (OpenEXR);
+* ``.png``, ``.jpg``/``.jpeg``: 8-bit, values clamped to [0, 1]; no transfer
+  curve unless ``srgb=True``, which applies the sRGB curve (Pillow writes them);
+* ``.npy``: float32 array of shape (H, W, 3).
+
+A file is written to a temporary file in the same directory and renamed over
+the target only when complete: a failure leaves no file and never truncates an
+existing one.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+
+import numpy as np
+
+WRITERS = (".exr", ".png", ".jpg", ".jpeg", ".npy")
+
+
+class ImageError(ValueError):
+    pass
+
+
+def srgb_encode(linear):
+    linear = np.clip(linear, 0.0, 1.0)
+    return np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+
+
+def srgb_decode(encoded):
+    return np.where(encoded <= 0.04045, encoded / 12.92, np.power((encoded + 0.055) / 1.055, 2.4))
+
+
+def check_writable(path: str) -> None:
+    """Raise ImageError unless ``path`` has a known extension (before any rendering)."""
+    if os.path.splitext(path)[1].lower() not in WRITERS:
+        raise ImageError(f"{path}: unknown output format; use one of {', '.join(WRITERS)}")
+
+
+def write(path: str, image, srgb: bool = False) -> None:
+    """Write an (H, W, 3) linear image to ``path`` atomically (format by extension)."""
+    check_writable(path)
+    image = np.asarray(image, dtype=np.float32)
+    ext = os.path.splitext(path)[1].lower()
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".raymitsuba-", suffix=ext, dir=directory)
+    os.close(fd)
+    try:
+        if ext == ".exr":
+            _write_exr(tmp, image)
+        elif ext == ".npy":
+            with open(tmp, "wb") as f:
+                np.save(f, image)
+        else:
+            _write_8bit(tmp, image, srgb, "JPEG" if ext in (".jpg", ".jpeg") else "PNG")
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _write_exr(path, image):
+    import OpenEXR
+
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    channels = {"RGB": np.ascontiguousarray(image)}
+    with OpenEXR.File(header, channels) as f:
+        f.write(path)
+
+
+def _write_8bit(path, image, srgb, fmt):
+    from PIL import Image
+
+    values = srgb_encode(image) if srgb else np.clip(image, 0.0, 1.0)
+    pixels = np.round(values * 255.0).astype(np.uint8)
+    Image.fromarray(pixels, "RGB").save(path, format=fmt, **({"quality": 95} if fmt == "JPEG" else {}))
+
+
+def read(path: str, srgb: bool = False) -> np.ndarray:
+    """An image file as a linear float32 (H, W, 3) array (8-bit decoded by ``srgb``)."""
+    ext = os.path.splitext(path)[1].lower()
+    try:
+        if ext == ".npy":
+            image = np.load(path)
+        elif ext == ".exr":
+            import OpenEXR
+
+            with OpenEXR.File(path) as f:
+                channels = f.channels()
+                image = channels["RGB"].pixels if "RGB" in channels else \
+                    np.stack([channels[c].pixels for c in "RGB"], -1)
+        else:
+            from PIL import Image
+
+            with Image.open(path) as im:
+                image = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+            if srgb:
+                image = srgb_decode(image)
+    except Exception as e:  # any reader's failure is the file's problem
+        raise ImageError(f"{path}: cannot read image: {e}") from None
+    image = np.asarray(image, dtype=np.float32)
+    if image.ndim != 3 or image.shape[2] != 3:
+        raise ImageError(f"{path}: expected an RGB image, got shape {image.shape}")
+    return image
