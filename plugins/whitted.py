@@ -109,6 +109,7 @@ class Whitted(mi.CppADIntegrator):
         super().__init__(props)
         self.max_depth = int(props.get("max_depth", 5))
         self.max_shadow_crossings = int(props.get("max_shadow_crossings", 16))
+        self.progress = None  # optional callable(generations_done), set by the CLI
         if self.max_depth < 0:
             raise ValueError("raywhitted: max_depth must be >= 0")
 
@@ -173,12 +174,14 @@ class Whitted(mi.CppADIntegrator):
             si = scene.ray_intersect(ray)
             hit = si.is_valid()
             bsdf = si.bsdf(ray)
-            local = dr.select(hit, self.shade(scene, si, bsdf, hit, ambient, direct), background)
+            local = dr.select(hit, self.shade(scene, si, bsdf, ray, ambient, direct), background)
             if depth == self.max_depth:
                 generations.append(Generation(local))
                 break
             generation, ray = self.spawn(si, bsdf, ray, hit, local)
             generations.append(generation)
+            if self.progress is not None:
+                self.progress(depth + 1)
             if ray is None:
                 break
 
@@ -192,13 +195,14 @@ class Whitted(mi.CppADIntegrator):
         n = si.sh_frame.n
         return dr.select(dr.dot(n, ray.d) > 0, -n, n)
 
-    def shade(self, scene, si, bsdf, hit, ambient, lights):
+    def shade(self, scene, si, bsdf, ray, ambient, lights):
         """L_local at each hit: ambient term plus each light's shadowed Phong term."""
+        hit = si.is_valid()
         color = ambient * bsdf.eval_attribute_3("ambient_reflectance", si, hit)
         if not lights:
             return color
         ctx = mi.BSDFContext()
-        n = dr.select(dr.dot(si.sh_frame.n, si.to_world(si.wi)) < 0, -si.sh_frame.n, si.sh_frame.n)
+        n = self.facing_normal(si, ray)
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)

@@ -57,6 +57,9 @@ def write(path: str, image, srgb: bool = False) -> None:
                 np.save(f, image)
         else:
             _write_8bit(tmp, image, srgb, "JPEG" if ext in (".jpg", ".jpeg") else "PNG")
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual mode
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -1,0 +1,87 @@
+"""``raymitsuba render``: a .RAY scene to an image file."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from raymitsuba import images
+from raymitsuba.model import RayError
+
+EXIT_SCENE_ERROR = 2
+EXIT_FAILURE = 1
+
+
+def report(diagnostics) -> None:
+    for d in diagnostics:
+        click.echo(d.format(), err=True)
+
+
+def fail(message: str, code: int = EXIT_FAILURE):
+    click.echo(f"raymitsuba: error: {message}", err=True)
+    sys.exit(code)
+
+
+class Progress:
+    """A tqdm bar over the generations of the ray tree, shown only on a terminal and
+    only once a render has taken more than two seconds."""
+
+    def __init__(self, total: int):
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=total, desc="rendering", unit="gen", delay=2.0, leave=False,
+                        disable=not sys.stderr.isatty())
+
+    def __call__(self, done: int):
+        self.bar.update(done - self.bar.n)
+
+    def close(self):
+        self.bar.close()
+
+
+@click.command()
+@click.argument("scene", type=click.Path(dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Output image: .exr (linear float), .png/.jpg (8-bit), .npy (float32 H x W x 3).")
+@click.option("--width", default=512, show_default=True, type=click.IntRange(1, 16384))
+@click.option("--height", default=512, show_default=True, type=click.IntRange(1, 16384))
+@click.option("--spp", default=1, show_default=True, type=click.IntRange(1, 4096),
+              help="Samples per pixel (1: the pixel centre; more: stratified, box filter).")
+@click.option("--max-depth", default=5, show_default=True, type=click.IntRange(0, 64),
+              help="Bounces after the camera ray.")
+@click.option("--srgb", is_flag=True,
+              help="Encode 8-bit output with the sRGB curve and decode 8-bit textures from it.")
+def render(scene, output, width, height, spp, max_depth, srgb):
+    """Render the .RAY file SCENE to OUTPUT."""
+    from raymitsuba import parser
+
+    try:
+        images.check_writable(output)
+    except images.ImageError as e:
+        raise click.BadParameter(str(e), param_hint="--output")
+    try:
+        model = parser.parse_file(scene)
+    except RayError as e:
+        report(e.diagnostics)
+        sys.exit(EXIT_SCENE_ERROR)
+    report(model.warnings)
+
+    from raymitsuba import api
+    from raymitsuba._llvm import LLVMError
+
+    progress = Progress(max_depth + 1)
+    try:
+        loaded = api.load(model, width=width, height=height, spp=spp, max_depth=max_depth, srgb=srgb)
+        loaded.integrator.progress = progress
+        image = api.render(loaded).numpy()
+        progress.close()
+        images.write(output, image, srgb=srgb)
+    except LLVMError as e:
+        fail(str(e))
+    except KeyboardInterrupt:
+        fail("interrupted; no output written", 130)
+    except Exception as e:  # Mitsuba's own errors (e.g. a texture it cannot decode)
+        fail(f"{scene}: {str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__}")
+    finally:
+        progress.close()
