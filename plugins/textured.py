@@ -4,11 +4,12 @@ The format attaches textures and the checkerboard to *objects*, while a
 material is shared by every object declared under it (and its parameters,
 ``mat{i}.*``, must stay one set). So an object that has a texture gets this
 small BSDF, which holds a reference to the shared material and multiplies its
-base color by the texel::
+base color by the texels::
 
     C(si) = material.color * texture(si) * checker(si)
 
-and otherwise evaluates exactly as the material does (see ``phong.py``).
+Everything else is the material's (see ``phong.py``). The Whitted integrator
+reads ``material`` and ``textures`` directly.
 
 Parameters:
 
@@ -20,12 +21,14 @@ Parameters:
 import drjit as dr
 import mitsuba as mi
 
+from .phong import phong_local
+
 
 class Textured(mi.BSDF):
     def __init__(self, props):
         super().__init__(props)
         self.material = props.get("material")
-        self.textures = [props.get(name) for name in ("texture", "checker") if name in props]
+        self.textures = tuple(props.get(name) for name in ("texture", "checker") if name in props)
         self.m_flags = self.material.m_flags
         self.m_components = [self.m_flags]
 
@@ -36,17 +39,21 @@ class Textured(mi.BSDF):
         return color
 
     def eval(self, ctx, si, wo, active=True):
-        return self.material.local(si, wo, self.color(si, active), active)
+        m = self.material
+        n = mi.Vector3f(0.0, 0.0, dr.select(mi.Frame3f.cos_theta(si.wi) < 0, -1.0, 1.0))
+        value = phong_local(n, si.wi, wo, self.color(si, active), m.diffuse_mix, m.specular_mix,
+                            m.phong_coeff)
+        return dr.select(active, value, 0.0)
 
     def eval_attribute_3(self, name, si, active=True):
         if name == "ambient_reflectance":
-            return self.material.ambient(self.color(si, active))
+            return self.material.ambient_mix * self.color(si, active)
         if name == "color":
             return self.color(si, active)
         return mi.Color3f(0.0)
 
     def eval_attribute_1(self, name, si, active=True):
-        return self.material.scalar_attribute(name)
+        return self.material.eval_attribute_1(name, si, active)
 
     def has_attribute(self, name, active=True):
         return self.material.has_attribute(name, active)

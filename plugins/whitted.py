@@ -48,9 +48,11 @@ Parameters:
 
 import drjit as dr
 import mitsuba as mi
+import numpy as np
 
 from .background import Background
 from .light import Light
+from .phong import FLOAT_PARAMS, phong_local
 
 GOLDEN = 0.6180339887498949
 
@@ -104,14 +106,60 @@ class Generation:
         return self.local + self.weight_r * reflected + self.weight_t * refracted
 
 
+class Surfaces:
+    """The parameters of every surface of a scene as arrays indexed by a *slot*.
+
+    A surface is one BSDF of the scene: a ``rayphong`` material or a
+    ``raytextured`` one. Instead of dispatching a virtual call per hit, the
+    integrator maps the hit's BSDF pointer (its Dr.Jit registry id) to a slot and
+    gathers the parameters from arrays built here from the materials' own
+    (differentiable) values, at the start of every render. Only the textures are
+    evaluated per surface, masked to the lanes that hit it.
+    """
+
+    def __init__(self, scene):
+        bsdfs = {}
+        for shape in scene.shapes():
+            bsdf = shape.bsdf()
+            bsdfs.setdefault(dr.reinterpret_array(mi.UInt32, mi.BSDFPtr(bsdf))[0], bsdf)
+        ids = list(bsdfs)
+        table = np.zeros(max(ids, default=0) + 1, dtype=np.uint32)
+        table[ids] = np.arange(len(ids), dtype=np.uint32)
+        self.slot_of_id = mi.UInt32(table)
+        materials = [bsdf.material for bsdf in bsdfs.values()]
+        self.textures = [(mi.UInt32(slot), bsdf.textures)
+                         for slot, bsdf in enumerate(bsdfs.values()) if bsdf.textures]
+        if not materials:
+            return
+        self.color = mi.Color3f(*(dr.concat([mi.Float(m.color[c]) for m in materials])
+                                  for c in range(3)))
+        for name in FLOAT_PARAMS:
+            setattr(self, name, dr.concat([mi.Float(getattr(m, name)) for m in materials]))
+
+    def slot(self, si, active):
+        return dr.gather(mi.UInt32, self.slot_of_id, dr.reinterpret_array(mi.UInt32, si.bsdf()), active)
+
+    def get(self, name, slot, active):
+        return dr.gather(mi.Float, getattr(self, name), slot, active)
+
+    def base_color(self, si, slot, active):
+        """C at each hit: the material's color times the surface's textures."""
+        color = dr.gather(mi.Color3f, self.color, slot, active)
+        for surface_slot, textures in self.textures:
+            mask = active & (slot == surface_slot)
+            for texture in textures:
+                color = dr.select(mask, color * texture.eval(si, mask), color)
+        return color
+
+
 class Whitted(mi.CppADIntegrator):
     def __init__(self, props):
         super().__init__(props)
         self.max_depth = int(props.get("max_depth", 5))
         self.max_shadow_crossings = int(props.get("max_shadow_crossings", 16))
-        self.progress = None  # optional callable(generations_done), set by the CLI
         if self.max_depth < 0:
             raise ValueError("raywhitted: max_depth must be >= 0")
+        self.progress = None  # optional callable(generations_done), set by the CLI
 
     # -- mi.Integrator interface ---------------------------------------------------------------
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
@@ -120,24 +168,28 @@ class Whitted(mi.CppADIntegrator):
 
     def render_forward(self, scene, params, sensor=0, seed=0, spp=0):
         with dr.resume_grad():
-            image = self.render_image(scene, sensor, spp)
+            image = self.render_image(scene, sensor, spp, differentiable=True)
             dr.forward_to(image)
             return dr.grad(image)
 
     def render_backward(self, scene, params, grad_in, sensor=0, seed=0, spp=0):
         with dr.resume_grad():
-            image = self.render_image(scene, sensor, spp)
+            image = self.render_image(scene, sensor, spp, differentiable=True)
             dr.backward_from(image * grad_in)
 
     # -- the image -----------------------------------------------------------------------------
-    def render_image(self, scene, sensor=0, spp=0):
-        """The (H, W, 3) image: per-pixel box-filtered average of the camera rays' colors."""
+    def render_image(self, scene, sensor=0, spp=0, differentiable=False):
+        """The (H, W, 3) image: per-pixel box-filtered average of the camera rays' colors.
+
+        ``differentiable`` selects evaluated (instead of symbolic) shadow-ray loops,
+        through which Dr.Jit can propagate derivatives in both directions.
+        """
         if isinstance(sensor, int):
             sensor = scene.sensors()[sensor]
         spp = spp or sensor.sampler().sample_count()
         width, height = sensor.film().crop_size()
         ray = self.camera_rays(sensor, width, height, spp)
-        color = self.trace(scene, ray)
+        color = self.trace(scene, ray, "evaluated" if differentiable else "symbolic")
         pixel = dr.arange(mi.UInt32, width * height) * spp
         image = dr.gather(mi.Color3f, color, pixel)
         for s in range(1, spp):
@@ -158,8 +210,10 @@ class Whitted(mi.CppADIntegrator):
         return mi.Ray3f(ray)
 
     # -- the ray tree --------------------------------------------------------------------------
-    def trace(self, scene, ray):
+    def trace(self, scene, ray, loop_mode):
         """Color of each ray of ``ray`` (one lane each) through the whole tree."""
+        self.loop_mode = loop_mode
+        surfaces = Surfaces(scene)
         lights = [e for e in scene.emitters() if isinstance(e, Light)]
         backgrounds = [e for e in scene.emitters() if isinstance(e, Background)]
         background = backgrounds[0].color if backgrounds else mi.Color3f(0.0)
@@ -173,12 +227,14 @@ class Whitted(mi.CppADIntegrator):
         for depth in range(self.max_depth + 1):
             si = scene.ray_intersect(ray)
             hit = si.is_valid()
-            bsdf = si.bsdf(ray)
-            local = dr.select(hit, self.shade(scene, si, bsdf, ray, ambient, direct), background)
+            slot = surfaces.slot(si, hit)
+            color = surfaces.base_color(si, slot, hit)
+            local = self.shade(scene, surfaces, si, slot, color, ray, ambient, direct)
+            local = dr.select(hit, local, background)
             if depth == self.max_depth:
                 generations.append(Generation(local))
                 break
-            generation, ray = self.spawn(si, bsdf, ray, hit, local)
+            generation, ray = self.spawn(surfaces, si, slot, ray, hit, local)
             generations.append(generation)
             if self.progress is not None:
                 self.progress(depth + 1)
@@ -195,46 +251,54 @@ class Whitted(mi.CppADIntegrator):
         n = si.sh_frame.n
         return dr.select(dr.dot(n, ray.d) > 0, -n, n)
 
-    def shade(self, scene, si, bsdf, ray, ambient, lights):
+    def shade(self, scene, surfaces, si, slot, color, ray, ambient, lights):
         """L_local at each hit: ambient term plus each light's shadowed Phong term."""
         hit = si.is_valid()
-        color = ambient * bsdf.eval_attribute_3("ambient_reflectance", si, hit)
+        result = ambient * surfaces.get("ambient_mix", slot, hit) * color
         if not lights:
-            return color
-        ctx = mi.BSDFContext()
-        n = self.facing_normal(si, ray)
+            return result
+        kd = surfaces.get("diffuse_mix", slot, hit)
+        ks = surfaces.get("specular_mix", slot, hit)
+        exponent = surfaces.get("phong_coeff", slot, hit)
+        n, v = self.facing_normal(si, ray), -ray.d
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
-            phong = bsdf.eval(ctx, si, si.to_local(wi), active)
-            transmittance = self.transmittance(scene, si, wi, dist, active)
-            color += dr.select(active, intensity * phong * transmittance, 0.0)
-        return color
+            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active)
+            phong = phong_local(n, v, wi, color, kd, ks, exponent)
+            result += dr.select(active, intensity * phong * transmittance, 0.0)
+        return result
 
-    def transmittance(self, scene, si, wi, dist, active):
+    def transmittance(self, scene, surfaces, si, wi, dist, active):
         """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
-        transmittance = mi.Float(1.0)
         ray = si.spawn_ray(wi)
         ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
-        active = mi.Bool(active)
-        for _ in range(self.max_shadow_crossings):
+
+        def body(ray, transmittance, crossings, active):
             blocker = scene.ray_intersect(ray, active)
             crossed = active & blocker.is_valid()
-            kt = blocker.bsdf(ray).eval_attribute_1("refractivity", blocker, crossed)
+            kt = surfaces.get("refractivity", surfaces.slot(blocker, crossed), crossed)
             transmittance = dr.select(crossed, transmittance * kt, transmittance)
-            active = crossed & (kt > 0)
-            if not dr.any(active):
-                return transmittance
-            remaining = ray.maxt - blocker.t
-            ray = blocker.spawn_ray(wi)
-            ray.maxt = remaining
-        return dr.select(active, 0.0, transmittance)
+            crossings += 1
+            onward = crossed & (kt > 0)
+            # Past max_shadow_crossings the light counts as blocked.
+            transmittance = dr.select(onward & (crossings >= self.max_shadow_crossings),
+                                      0.0, transmittance)
+            next_ray = blocker.spawn_ray(wi)
+            next_ray.maxt = ray.maxt - blocker.t
+            ray = dr.select(onward, next_ray, ray)
+            return ray, transmittance, crossings, onward & (crossings < self.max_shadow_crossings)
 
-    def spawn(self, si, bsdf, ray, hit, local):
+        state = (ray, mi.Float(1.0), mi.UInt32(0), mi.Bool(active))
+        _, transmittance, _, _ = dr.while_loop(state, lambda *s: s[-1], body,
+                                               mode=self.loop_mode, label="shadow ray")
+        return transmittance
+
+    def spawn(self, surfaces, si, slot, ray, hit, local):
         """This generation's record and the next generation's rays (None when there are none)."""
-        kr = bsdf.eval_attribute_1("reflectivity", si, hit)
-        kt = bsdf.eval_attribute_1("refractivity", si, hit)
-        eta = bsdf.eval_attribute_1("ior", si, hit)
+        kr = surfaces.get("reflectivity", slot, hit)
+        kt = surfaces.get("refractivity", slot, hit)
+        eta = surfaces.get("ior", slot, hit)
         v = -ray.d
         n = self.facing_normal(si, ray)
         entering = dr.dot(si.n, ray.d) < 0
@@ -242,17 +306,18 @@ class Whitted(mi.CppADIntegrator):
         weight_r = kr + dr.select(tir, kt, 0.0)
         weight_t = dr.select(tir, 0.0, kt)
         has_r, has_t = hit & (weight_r > 0), hit & (weight_t > 0)
+        reflected = si.spawn_ray(reflect(v, n))
+        refracted = si.spawn_ray(refracted_d)
+        dr.eval(local, weight_r, weight_t, has_r, has_t, reflected, refracted)
 
         index_r, index_t = dr.compress(has_r), dr.compress(has_t)
         count_r, count_t = dr.width(index_r), dr.width(index_t)
-        child_r = dr.prefix_sum(mi.UInt32(has_r))  # exclusive
+        child_r = dr.prefix_sum(mi.UInt32(has_r))  # exclusive: the rank among the lanes with a child
         child_t = dr.prefix_sum(mi.UInt32(has_t)) + count_r
         generation = Generation(local, weight_r, child_r, has_r, weight_t, child_t, has_t)
         if count_r + count_t == 0:
             return generation, None
 
-        reflected = si.spawn_ray(reflect(v, n))
-        refracted = si.spawn_ray(refracted_d)
         source = dr.concat([index_r, index_t])
         is_t = dr.arange(mi.UInt32, count_r + count_t) >= count_r
         origin = dr.select(is_t, dr.gather(mi.Point3f, refracted.o, source),
