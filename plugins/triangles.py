@@ -8,8 +8,8 @@ winding points to. Faces are flat (no vertex normals).
 Texture coordinates: (0, 0), (1, 0), (0, 1) at the first, second and third
 corner as written in the file.
 
-Parameters: ``positions`` (mi.TensorXf of shape (3 * count, 3), world space);
-``texcoords`` (mi.TensorXf of shape (3 * count, 2)).
+Parameters: ``positions`` (mi.Float, x y z of each corner, 9 per triangle, world
+space); ``texcoords`` (mi.Float, u v of each corner, 6 per triangle).
 """
 
 import numpy as np

@@ -206,5 +206,5 @@ def triangle_mesh(objs, mi) -> dict:
         texcoords.append(TRIANGLE_UV[order])
     positions = np.concatenate(positions).astype(np.float32)
     texcoords = np.concatenate(texcoords).astype(np.float32)
-    return {"type": "raytriangles", "positions": mi.TensorXf(positions),
-            "texcoords": mi.TensorXf(texcoords)}
+    return {"type": "raytriangles", "positions": mi.Float(positions.ravel()),
+            "texcoords": mi.Float(texcoords.ravel())}
