@@ -318,7 +318,9 @@ class Whitted(mi.CppADIntegrator):
         if count_r + count_t == 0:
             return generation, None
 
-        source = dr.concat([index_r, index_t])
+        # dr.concat rejects an empty part (a scene with mirrors but no glass, or the reverse)
+        source = index_t if count_r == 0 else index_r if count_t == 0 else \
+            dr.concat([index_r, index_t])
         is_t = dr.arange(mi.UInt32, count_r + count_t) >= count_r
         origin = dr.select(is_t, dr.gather(mi.Point3f, refracted.o, source),
                            dr.gather(mi.Point3f, reflected.o, source))
