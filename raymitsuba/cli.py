@@ -20,10 +20,25 @@ def main():
 
 
 @main.command()
-@click.argument("scenes", nargs=-1, required=True, type=click.Path(dir_okay=False))
-def check(scenes):
-    """Validate .RAY SCENES and print a short summary of each."""
-    raise NotImplementedError  # the parser issue fills this in
+@click.argument("scenes", nargs=-1, required=True, type=click.Path())
+@click.pass_context
+def check(ctx, scenes):
+    """Validate .RAY SCENES and print a short summary of each.
+
+    The summary (objects and lights by kind, materials, the world bounding box
+    of the finite objects) goes to stdout; errors and warnings go to stderr as
+    FILE:LINE:COLUMN: error|warning: message. Exit status 0 when every scene is
+    valid, 2 when any has an error.
+    """
+    from raymitsuba.summary import check_scenes
+
+    def echo(text, err=False):
+        stream = sys.stderr if err else sys.stdout
+        encoding = getattr(stream, "encoding", None) or "utf-8"
+        # file names may carry undecodable bytes (surrogates): never fail to print them
+        click.echo(text.encode(encoding, "backslashreplace").decode(encoding), err=err)
+
+    ctx.exit(check_scenes(scenes, echo))
 
 
 if __name__ == "__main__":

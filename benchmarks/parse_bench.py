@@ -1,0 +1,65 @@
+"""Parser throughput: time to parse generated scenes of 10^4, 10^5 and 10^6 lines.
+
+    .venv/bin/python benchmarks/parse_bench.py [--max-exponent 6]
+
+The scene mixes every kind of line (objects, transforms with matching pops,
+materials, lights, comments, blank lines). The parser is linear when the time
+grows about tenfold per tenfold of lines, which the last column shows. Timings
+live here, never in the tests.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from raymitsuba.parser import parse_text
+
+BLOCK = """\
+# a block of 20 lines that leaves the stack as it found it
+material 0.8 0.2 0.1 0.1 0.7 0.3 20 0.1 0 1
+translate 1 2 3
+rotateY 30
+scale 0.5 0.5 0.5   # a trailing comment
+sphere
+cylinder
+pop
+cone
+triangle 0 0 0 1 0 0 0 1 0
+pop
+rotateX 90
+plane
+checkerboard 0.5
+pop
+
+light 0.2 0.2 0.2 point 1 5 1
+ROTATEZ -45
+triangle 1 1 1 2 1 1 1 2 1
+reset
+"""
+BLOCK_LINES = BLOCK.count("\n")
+
+
+def scene_text(lines: int) -> str:
+    return BLOCK * (lines // BLOCK_LINES)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--max-exponent", type=int, default=6, help="largest power of ten of lines")
+    args = ap.parse_args()
+    previous = None
+    print(f"{'lines':>10} {'seconds':>9} {'lines/s':>11} {'ratio':>6}")
+    for exponent in range(4, args.max_exponent + 1):
+        text = scene_text(10 ** exponent)
+        start = time.perf_counter()
+        scene = parse_text(text)
+        seconds = time.perf_counter() - start
+        ratio = f"{seconds / previous:6.1f}" if previous else "     -"
+        print(f"{10 ** exponent:>10} {seconds:9.3f} {10 ** exponent / seconds:11.0f} {ratio}"
+              f"   ({len(scene.objects)} objects)")
+        previous = seconds
+
+
+if __name__ == "__main__":
+    main()

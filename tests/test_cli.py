@@ -1,0 +1,176 @@
+"""Tests of ``raymitsuba check`` (raymitsuba/cli.py) and its summary (raymitsuba/summary.py)."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import pytest
+from click.testing import CliRunner
+
+from raymitsuba.cli import main
+from raymitsuba.parser import parse_text
+from raymitsuba.summary import object_bounds, scene_bounds, summarize
+
+VALID = """\
+# two spheres, a cone and a floor
+eye 0 2 10
+light 1 1 1 point 0 5 5
+light 0.2 0.2 0.2 ambient
+material 1 0 0 0.1 0.9 0 1 0 0 1
+translate 2 0 0
+scale 2 2 2
+sphere
+reset
+sphere
+rotateZ 90
+cone
+reset
+plane
+"""
+
+
+def run(*args):
+    return CliRunner().invoke(main, list(args))
+
+
+@pytest.fixture
+def valid(tmp_path):
+    path = tmp_path / "valid.ray"
+    path.write_text(VALID)
+    return path
+
+
+@pytest.fixture
+def invalid(tmp_path):
+    path = tmp_path / "invalid.ray"
+    path.write_text("sphere 1\nrotatey2 3\nlight 1 1 1 ambient\n")
+    return path
+
+
+class TestCheck:
+    def test_valid_scene_exits_0_with_a_summary(self, valid):
+        result = run("check", str(valid))
+        assert result.exit_code == 0, result.output
+        assert result.stdout.splitlines() == [
+            f"{valid}: ok",
+            "  camera     eye (0, 2, 10)  lookat (0, 0, 0)  up (0, 1, 0)  fov 45",
+            "  background (0, 0, 0)",
+            "  objects    4 (2 sphere, 1 plane, 1 cone)",
+            "  lights     2 (1 ambient, 1 point)",
+            "  materials  1 declared (plus the default)",
+            "  bounds     (-1, -2, -2) to (6, 2, 2)  (planes are infinite and left out)",
+            "  warnings   0",
+        ]
+        assert result.stderr == ""
+
+    def test_invalid_scene_exits_2_with_diagnostics_on_stderr(self, invalid):
+        result = run("check", str(invalid))
+        assert result.exit_code == 2
+        assert result.stdout == ""
+        assert f"{invalid}:1:8: error: `sphere` takes no operands, found 1" in result.stderr
+        assert (f"{invalid}:2:1: error: unknown command `rotatey2`; did you mean `rotateY`?"
+                in result.stderr)
+        assert result.stderr.rstrip().endswith(f"{invalid}: invalid, 2 errors")
+
+    def test_any_invalid_scene_makes_the_status_2(self, valid, invalid):
+        result = run("check", str(valid), str(invalid), str(valid))
+        assert result.exit_code == 2
+        assert result.stdout.count(": ok") == 2
+
+    def test_warnings_go_to_stderr_and_are_counted(self, tmp_path):
+        path = tmp_path / "w.ray"
+        path.write_text("eye 0 0 4\neye 0 0 6\nsphere\n")
+        result = run("check", str(path))
+        assert result.exit_code == 0
+        assert f"{path}:2:1: warning: `eye` given again" in result.stderr
+        assert f"{path}:3:1: warning: the scene has objects but no light" in result.stderr
+        assert "  warnings   2" in result.stdout
+
+    @pytest.mark.parametrize("make", [
+        lambda p: p / "missing.ray",
+        lambda p: p,  # a directory
+        lambda p: (p / "bad.ray").write_bytes(b"\xff\x00\xfe sphere\n") and p / "bad.ray",
+        lambda p: (p / "nan.ray").write_text("translate nan 1e400 0\n") and p / "nan.ray",
+    ])
+    def test_bad_input_never_gives_a_traceback(self, tmp_path, make):
+        result = run("check", str(make(tmp_path)))
+        assert result.exit_code == 2
+        assert result.exception is None or isinstance(result.exception, SystemExit)
+        assert "Traceback" not in result.output and "error:" in result.stderr
+
+    def test_empty_scene(self, tmp_path):
+        path = tmp_path / "empty.ray"
+        path.write_text("")
+        result = run("check", str(path))
+        assert result.exit_code == 0
+        assert "  objects    0" in result.stdout
+        assert "  bounds     none (no finite objects)" in result.stdout
+
+    def test_needs_a_scene(self):
+        assert run("check").exit_code == 2  # click's usage error
+
+    def test_help(self):
+        result = run("check", "--help")
+        assert result.exit_code == 0
+        assert "Validate .RAY SCENES" in result.stdout and "Exit status 0" in result.stdout
+
+    def test_python_dash_m(self, valid, invalid):
+        ok = subprocess.run([sys.executable, "-m", "raymitsuba", "check", str(valid)],
+                            capture_output=True, text=True, timeout=120)
+        assert ok.returncode == 0 and f"{valid}: ok" in ok.stdout
+        bad = subprocess.run([sys.executable, "-m", "raymitsuba", "check", str(invalid),
+                              str(invalid.parent / "\udcff.ray")],
+                             capture_output=True, timeout=120)
+        assert bad.returncode == 2 and b"Traceback" not in bad.stderr
+        assert b"rotatey2" in bad.stderr
+
+
+class TestBounds:
+    def bounds(self, text):
+        return scene_bounds(parse_text(text + "\nlight 1 1 1 ambient\n"))
+
+    def test_sphere_translated_and_scaled(self):
+        assert self.bounds("translate 2 0 0\nscale 2 2 2\nsphere") == ((2, -2, -2), (6, 2, 2))
+
+    def test_ellipsoid_is_exact_under_rotation(self):
+        lo, hi = self.bounds("scale 3 1 1\nrotateZ 45\nsphere")
+        # the x half-extent of M = Rz(45) S(3,1,1) is the norm of row 0: sqrt(4.5 + 0.5)
+        assert math.isclose(hi[0], math.sqrt(5)) and math.isclose(lo[1], -math.sqrt(5))
+        assert hi[2] == 1 and lo[2] == -1
+
+    def test_cylinder(self):
+        assert self.bounds("cylinder") == ((-1, -0.5, -1), (1, 0.5, 1))
+        lo, hi = self.bounds("rotateX 90\ncylinder")  # axis along z
+        assert (lo, hi) == ((-1, -1, -0.5), (1, 1, 0.5))
+
+    def test_tilted_cylinder_is_exact(self):
+        lo, hi = self.bounds("rotateZ 30\ncylinder")
+        c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+        # x: half the axis (0.5 * |-s|) plus the disk radius projected (|c|)
+        assert math.isclose(hi[0], 0.5 * s + c) and math.isclose(hi[1], 0.5 * c + s)
+
+    def test_cone(self):
+        assert self.bounds("cone") == ((-1, -0.5, -1), (1, 0.5, 1))
+        assert self.bounds("rotateZ 90\ncone") == ((-0.5, -1, -1), (0.5, 1, 1))
+        assert self.bounds("scale 1 4 1\ncone") == ((-1, -2, -1), (1, 2, 1))
+
+    def test_cone_apex_sticking_out_sideways(self):
+        # a tall cone turned to lie along +x: the apex at x = 2 bounds it on the right
+        lo, hi = self.bounds("scale 1 4 1\nrotateZ -90\ncone")
+        assert (lo, hi) == ((-2, -1, -1), (2, 1, 1))
+
+    def test_triangle_uses_its_transformed_corners(self):
+        assert self.bounds("translate 0 0 1\ntriangle 0 0 0 2 0 0 0 3 0") == ((0, 0, 1), (2, 3, 1))
+
+    def test_plane_has_no_box(self):
+        scene = parse_text("plane\nlight 1 1 1 ambient")
+        assert object_bounds(scene.objects[0]) is None and scene_bounds(scene) is None
+
+    def test_union(self):
+        assert self.bounds("sphere\ntranslate 10 0 0\nsphere\nplane") == ((-1, -1, -1), (11, 1, 1))
+
+    def test_summarize_starts_with_the_file(self):
+        text = summarize(parse_text("sphere\nlight 1 1 1 ambient", file="x.ray"))
+        assert text.splitlines()[0] == "x.ray: ok"
