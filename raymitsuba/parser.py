@@ -43,7 +43,7 @@ from raymitsuba.model import (IDENTITY, Camera, Diagnostic, Light, LightKind, Ma
                               Matrix4, ObjectKind, RayError, Scene, SceneObject, Severity,
                               Texture, Vec3)
 
-__all__ = ["parse", "parse_file", "parse_text", "COMMANDS", "TEXTURE_FORMATS"]
+__all__ = ["parse", "parse_file", "parse_text", "COMMANDS", "OPERANDS", "TEXTURE_FORMATS"]
 
 PathOrText = Union[str, bytes, "os.PathLike[str]"]
 
@@ -80,7 +80,6 @@ _LIGHT_OPERANDS: Dict[LightKind, Tuple[str, ...]] = {
 _LIGHT_KINDS = {kind.value: kind for kind in LightKind}
 _LIGHT_KIND_LIST = "ambient, point, directional or spotlight"
 
-_CAMERA_COMMANDS = ("eye", "lookat", "up", "fov")
 _OBJECT_KINDS = {kind.value: kind for kind in ObjectKind}
 #: Material operands for which a negative value draws a warning (n and eta are checked
 #: as errors instead).
