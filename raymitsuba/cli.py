@@ -41,5 +41,9 @@ def check(ctx, scenes):
     ctx.exit(check_scenes(scenes, echo))
 
 
+from raymitsuba.render_cli import render  # noqa: E402  (its own module: the render command)
+
+main.add_command(render)
+
 if __name__ == "__main__":
     sys.exit(main())

@@ -1,0 +1,240 @@
+"""raymitsuba's rendering benchmark: prints medians and ratios, all measured in this run.
+
+    ./dev bench                 # full: 1024x768, 1 and 4 spp, both scenes
+    ./dev bench --quick         # fewer repeats, for a smoke run
+
+For each benchmark scene (scenes/benchmark_reflective.ray: mirrors only;
+scenes/benchmark_glass.ray: the same geometry with glass, the full
+reflection + refraction tree) and each sample count it measures:
+
+* cold first render: a fresh process whose Dr.Jit kernel cache is empty
+  (HOME pointed at a new directory), so kernel compilation is included;
+* first render: a fresh process with the kernel cache as it is;
+* warm render: median of repeated renders in one process;
+* native direct: Mitsuba's own ``direct`` integrator on the same geometry (diffuse
+  materials, the same point lights, one emitter sample, no BSDF sample), warm;
+  the ratio is per camera ray (both trace width x height x spp camera rays);
+* process: wall time of the whole ``raymitsuba render`` command;
+* POV-Ray: wall time of ``povray`` on an export of the same scene, when installed;
+
+and for gradients: one step (primal + reverse-mode backpropagation of an L2
+loss to all material parameters) at 256x256 / 8 spp and 1024x768 / 1 spp, as a
+ratio to the primal render at the same settings.
+
+Timings on shared machines are noisy: medians of several runs, and ratios of
+figures taken in the same run, are what to compare.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENES = ("benchmark_reflective", "benchmark_glass")
+sys.path.insert(0, ROOT)
+
+
+def scene_path(name):
+    return os.path.join(ROOT, "scenes", name + ".ray")
+
+
+# -- measurements inside one process ----------------------------------------------------------
+def first_render(path, width, height, spp):
+    t0 = time.perf_counter()
+    import raymitsuba
+
+    loaded = raymitsuba.load(path, width=width, height=height, spp=spp)
+    t1 = time.perf_counter()
+    raymitsuba.render(loaded).numpy()
+    t2 = time.perf_counter()
+    return {"load": t1 - t0, "first": t2 - t1}
+
+
+def warm_renders(path, width, height, spp, repeats):
+    import raymitsuba
+
+    loaded = raymitsuba.load(path, width=width, height=height, spp=spp)
+    raymitsuba.render(loaded).numpy()
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        raymitsuba.render(loaded).numpy()
+        times.append(time.perf_counter() - t)
+    return times
+
+
+def native_direct(path, width, height, spp, repeats):
+    """Mitsuba's `direct` integrator on the same geometry and point lights."""
+    import raymitsuba
+    from raymitsuba.backend import mitsuba
+    from raymitsuba.translate import Options, translate
+
+    mi = mitsuba()
+    source = translate(raymitsuba.parse(path), Options(width=width, height=height, spp=spp))
+    native = {}
+    for key, value in source.items():
+        kind = value.get("type") if isinstance(value, dict) else None
+        if kind in ("rayphong", "raytextured"):
+            native[key] = {"type": "diffuse", "id": key}
+        elif kind == "raylight":
+            if value["kind"] == "point":
+                native[key] = {"type": "point", "position": value["position"],
+                               "intensity": {"type": "rgb", "value": value["color"]}}
+        elif kind == "raybackground":
+            native[key] = {"type": "constant"}
+        elif key == "integrator":
+            native[key] = {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0}
+        else:
+            native[key] = value
+    scene = mi.load_dict(native)
+    mi.render(scene, spp=spp).numpy()
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        mi.render(scene, spp=spp).numpy()
+        times.append(time.perf_counter() - t)
+    return times
+
+
+def gradient_step(path, width, height, spp, repeats):
+    """(primal times, primal + reverse times) for an L2 loss against a perturbed render."""
+    import drjit as dr
+    import raymitsuba
+
+    loaded = raymitsuba.load(path, width=width, height=height, spp=spp)
+    params = loaded.params
+    keys = [k for k in params.keys() if k.startswith("mat")]  # every material parameter
+    target = raymitsuba.render(loaded)
+    dr.eval(target)
+
+    def primal():
+        raymitsuba.render(loaded).numpy()
+
+    def step():
+        for key in keys:
+            dr.enable_grad(params[key])
+        params.update()
+        image = raymitsuba.render(loaded)
+        loss = dr.mean(dr.square(image - target), axis=None)
+        dr.backward(loss)
+        [dr.grad(params[key]).numpy() for key in keys]
+        for key in keys:
+            dr.disable_grad(params[key])
+        params.update()
+
+    out = {}
+    for name, fn in (("primal", primal), ("step", step)):
+        fn()
+        times = []
+        for _ in range(repeats):
+            t = time.perf_counter()
+            fn()
+            times.append(time.perf_counter() - t)
+        out[name] = times
+    return out
+
+
+# -- measurements of whole processes ----------------------------------------------------------
+def child(args, env=None):
+    """Run this script in a fresh process for one measurement; returns its JSON result."""
+    out = subprocess.run([sys.executable, __file__, "--child", json.dumps(args)],
+                         capture_output=True, text=True, env=env, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def wall(cmd, repeats, **kwargs):
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        subprocess.run(cmd, check=True, capture_output=True, **kwargs)
+        times.append(time.perf_counter() - t)
+    return times
+
+
+def povray_times(path, width, height, spp, repeats, workdir):
+    if not shutil.which("povray"):
+        return None
+    import raymitsuba
+    from povray import export
+
+    pov = os.path.join(workdir, "scene.pov")
+    with open(pov, "w") as f:
+        f.write(export(raymitsuba.parse(path), width, height))
+    # 4 spp: POV-Ray's non-adaptive supersampling with a 2x2 grid per pixel (+AM1 +R2, threshold 0).
+    aa = ["+A0.0", "+AM1", "+R2"] if spp > 1 else ["-A"]
+    cmd = ["povray", f"+I{pov}", f"+O{workdir}/pov.png", f"+W{width}", f"+H{height}", "-D", "-V",
+           "+WT2", *aa]
+    return wall(cmd, repeats, cwd=workdir)
+
+
+def median(xs):
+    return statistics.median(xs) if xs else float("nan")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="fewer repeats")
+    ap.add_argument("--width", type=int, default=1024)
+    ap.add_argument("--height", type=int, default=768)
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        job = json.loads(args.child)
+        fn = {"first": first_render, "warm": warm_renders, "direct": native_direct,
+              "grad": gradient_step}[job.pop("what")]
+        print(json.dumps(fn(**job)))
+        return
+
+    repeats = 3 if args.quick else 7
+    w, h = args.width, args.height
+    work = tempfile.mkdtemp(prefix="raymitsuba-bench-")
+    rows = []
+    print(f"raymitsuba benchmark: {w}x{h}, medians of {repeats} runs (first renders: of 1-3 fresh processes)")
+    for name in SCENES:
+        path = scene_path(name)
+        for spp in (1, 4):
+            common = {"path": path, "width": w, "height": h, "spp": spp}
+            cold_home = tempfile.mkdtemp(prefix="home-", dir=work)
+            cold = child({"what": "first", **common}, env=dict(os.environ, HOME=cold_home))
+            first = [child({"what": "first", **common})["first"] for _ in range(1 if args.quick else 3)]
+            warm = child({"what": "warm", "repeats": repeats, **common})
+            direct = child({"what": "direct", "repeats": repeats, **common})
+            out = os.path.join(work, "out.exr")
+            process = wall([sys.executable, "-m", "raymitsuba", "render", path, "-o", out,
+                            "--width", str(w), "--height", str(h), "--spp", str(spp)], max(3, repeats // 2))
+            pov = povray_times(path, w, h, spp, max(3, repeats // 2), work)
+            rows.append({"scene": name, "spp": spp, "cold_first": cold["first"], "first": median(first),
+                         "warm": median(warm), "direct": median(direct), "process": median(process),
+                         "povray": median(pov) if pov else None})
+    print()
+    print(f"{'scene':22} {'spp':>3} {'cold 1st':>9} {'1st':>7} {'warm':>7} {'direct':>7} "
+          f"{'warm/dir':>8} {'process':>8} {'povray':>7} {'pov/proc':>8}")
+    for r in rows:
+        pov = f"{r['povray']:7.2f}" if r["povray"] else "    n/a"
+        ratio = f"{r['povray'] / r['process']:8.2f}" if r["povray"] else "     n/a"
+        print(f"{r['scene']:22} {r['spp']:3d} {r['cold_first']:9.2f} {r['first']:7.2f} {r['warm']:7.3f} "
+              f"{r['direct']:7.3f} {r['warm'] / r['direct']:8.1f} {r['process']:8.2f} {pov} {ratio}")
+    for spp in (1, 4):
+        refl = [r for r in rows if r["spp"] == spp and r["scene"] == SCENES[0]][0]
+        glass = [r for r in rows if r["spp"] == spp and r["scene"] == SCENES[1]][0]
+        print(f"glass / reflective warm render at {spp} spp: {glass['warm'] / refl['warm']:.2f}")
+
+    print("\ngradient step (primal + reverse) vs primal:")
+    for (gw, gh, gspp) in ((256, 256, 8), (w, h, 1)):
+        g = child({"what": "grad", "path": scene_path(SCENES[1]), "width": gw, "height": gh,
+                   "spp": gspp, "repeats": repeats})
+        print(f"  {SCENES[1]} {gw}x{gh} {gspp} spp: primal {median(g['primal']):.3f} s, "
+              f"step {median(g['step']):.3f} s, ratio {median(g['step']) / median(g['primal']):.2f}")
+    shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
