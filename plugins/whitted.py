@@ -129,15 +129,21 @@ class Surfaces:
         materials = [bsdf.material for bsdf in bsdfs.values()]
         self.textures = [(mi.UInt32(slot), bsdf.textures)
                          for slot, bsdf in enumerate(bsdfs.values()) if bsdf.textures]
+        self.transparent = False
         if not materials:
             return
         self.color = mi.Color3f(*(dr.concat([mi.Float(m.color[c]) for m in materials])
                                   for c in range(3)))
         for name in FLOAT_PARAMS:
             setattr(self, name, dr.concat([mi.Float(getattr(m, name)) for m in materials]))
+        self.transparent = bool(dr.any(self.refractivity > 0))
 
     def slot(self, si, active):
-        return dr.gather(mi.UInt32, self.slot_of_id, dr.reinterpret_array(mi.UInt32, si.bsdf()), active)
+        return self.slot_of(si.bsdf(), active)
+
+    def slot_of(self, bsdf, active):
+        """The slot of each lane's BSDF (a BSDFPtr: its values are Dr.Jit registry ids)."""
+        return dr.gather(mi.UInt32, self.slot_of_id, dr.reinterpret_array(mi.UInt32, bsdf), active)
 
     def get(self, name, slot, active):
         return dr.gather(mi.Float, getattr(self, name), slot, active)
@@ -273,20 +279,27 @@ class Whitted(mi.CppADIntegrator):
         """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
         ray = si.spawn_ray(wi)
         ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
+        if self.loop_mode == "symbolic" and not surfaces.transparent:
+            # Nothing lets light through, and no derivative is wanted: any hit blocks.
+            return dr.select(scene.ray_test(ray, active), 0.0, 1.0)
 
         def body(ray, transmittance, crossings, active):
-            blocker = scene.ray_intersect(ray, active)
-            crossed = active & blocker.is_valid()
-            kt = surfaces.get("refractivity", surfaces.slot(blocker, crossed), crossed)
+            # Only the distance and the BSDF of each crossing matter: a preliminary
+            # intersection is enough. The next ray starts just past the crossing.
+            crossing = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
+            crossed = active & crossing.is_valid()
+            bsdf = crossing.shape.bsdf()
+            kt = surfaces.get("refractivity", surfaces.slot_of(bsdf, crossed), crossed)
             transmittance = dr.select(crossed, transmittance * kt, transmittance)
             crossings += 1
             onward = crossed & (kt > 0)
             # Past max_shadow_crossings the light counts as blocked.
             transmittance = dr.select(onward & (crossings >= self.max_shadow_crossings),
                                       0.0, transmittance)
-            next_ray = blocker.spawn_ray(wi)
-            next_ray.maxt = ray.maxt - blocker.t
-            ray = dr.select(onward, next_ray, ray)
+            p = ray(crossing.t)
+            step = (1.0 + dr.max(dr.abs(p))) * mi.math.RayEpsilon
+            ray = mi.Ray3f(dr.select(onward, p + step * ray.d, ray.o), ray.d,
+                           dr.select(onward, ray.maxt - crossing.t - step, ray.maxt))
             return ray, transmittance, crossings, onward & (crossings < self.max_shadow_crossings)
 
         state = (ray, mi.Float(1.0), mi.UInt32(0), mi.Bool(active))
