@@ -1,0 +1,422 @@
+"""Fitting material and light parameters of a .RAY scene to a target image.
+
+    loaded = raymitsuba.load("scene.ray", width=W, height=H)      # the target's size
+    result = fit(loaded, target, ["mat1.diffuse_mix", "light1.color"], iters=100, lr=0.02)
+    result.fitted["mat1.diffuse_mix"]                               # a float (3-tuples for colors)
+    text = rewrite_scene(open("scene.ray", "rb").read(), loaded.model, result.fitted)
+
+**Loss.** The mean squared error over all pixels and the three channels,
+``mean((render - target)^2)`` (L2), of linear values. The render uses the
+loaded scene's sampling (``spp``; one sample per pixel goes through the pixel
+centre, so a target rendered from the true scene is matched exactly at the
+optimum).
+
+**Optimizer.** ``mi.ad.Adam`` with a step size relative to each parameter's
+scale: parameter ``k`` gets the learning rate ``lr * max(1, max|start value|)``,
+so ``lr`` is a fraction of the parameter's size (colors, mixes, kr, kt and ior
+move by about ``lr`` per step, a Phong exponent of 20 or a light 6 units away by
+about ``20 lr`` / ``6 lr``). The rate decays geometrically over the run to
+``final_lr`` (default 1/10) of that at the last step, which lets Adam settle
+instead of circling the minimum.
+
+**Valid ranges.** After every step each parameter is clamped into its range
+(:data:`LOWER_BOUNDS`): colors and the ambient/diffuse/specular mixes >= 0,
+phong_coeff >= 0, ior >= 1e-3 (the format needs eta > 0), the spot's shape
+coefficient >= 0, and reflectivity and refractivity >= 1e-4. The last is
+because a branch of the ray tree whose weight is exactly 0 is not traced, so
+the derivative *at* kr = 0 (or kt = 0) cannot see what a reflection (or
+refraction) would add: a fitted kr or kt that reached 0 could never come back.
+Positions and directions are not bounded.
+
+**Default parameters** (:func:`default_keys`): for every material used by an
+object and written on a ``material`` line: color, ambient_mix, diffuse_mix,
+specular_mix, phong_coeff; reflectivity and refractivity only where they start
+above 0 (at 0 their derivative is blind, see above); ior only where refractivity
+starts above 0 (otherwise it changes nothing); plus the color of every light.
+Note that some parameters are only jointly determined by an image (a material's
+color times its diffuse mix times the light's color): fitting all of them lowers
+the loss but need not recover each one; pick ``keys`` accordingly.
+
+**Writing back** (:func:`rewrite_scene`): the .RAY text with only the fitted
+numbers replaced, every other byte unchanged (comments, spacing, line ends).
+The operands are found from the parser's line numbers (``Material.line``,
+``Light.line``) by re-tokenizing that one line; a number whose value did not
+change keeps its original spelling, a changed one is written as ``f"{x:.6g}"``.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import math
+import os
+import re
+import tempfile
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from raymitsuba.model import LightKind, Material, Scene
+
+Value = Union[float, Tuple[float, ...]]
+
+MATERIAL_FIELDS = Material.FIELDS
+LIGHT_FIELDS = ("color", "position", "direction", "shape_coefficient")
+
+#: Lower bound of each field after every step (None: unbounded).
+LOWER_BOUNDS: Dict[str, Optional[float]] = {
+    "color": 0.0, "ambient_mix": 0.0, "diffuse_mix": 0.0, "specular_mix": 0.0,
+    "phong_coeff": 0.0, "reflectivity": 1e-4, "refractivity": 1e-4, "ior": 1e-3,
+    "position": None, "direction": None, "shape_coefficient": 0.0,
+}
+
+#: Index (token number on its line, the command being 0) of each field's first operand.
+_MATERIAL_TOKENS = {"color": (1, 2, 3), "ambient_mix": (4,), "diffuse_mix": (5,),
+                    "specular_mix": (6,), "phong_coeff": (7,), "reflectivity": (8,),
+                    "refractivity": (9,), "ior": (10,)}
+_LIGHT_TOKENS = {
+    ("color", None): (1, 2, 3),
+    ("position", LightKind.POINT): (5, 6, 7),
+    ("direction", LightKind.DIRECTIONAL): (5, 6, 7),
+    ("position", LightKind.SPOT): (5, 6, 7),
+    ("direction", LightKind.SPOT): (8, 9, 10),
+    ("shape_coefficient", LightKind.SPOT): (11,),
+}
+_TOKEN = re.compile(r"[^ \t]+")  # the parser's tokens: runs of anything but space and tab
+_LINE_END = re.compile(r"(\r\n|\r|\n)")  # the parser's line ends
+
+
+class FitError(ValueError):
+    """A request the fit cannot carry out (unknown key, wrong target size, ...)."""
+
+
+# -- which parameters ---------------------------------------------------------------------------
+def writable_keys(model: Scene) -> List[str]:
+    """Every parameter key whose value has a place in the .RAY file: the fields of each
+    ``material`` line (mat1, mat2, ...) and of each ``light`` line, by kind."""
+    keys = [f"mat{m.index}.{name}" for m in model.materials if m.line is not None
+            for name in MATERIAL_FIELDS]
+    for light in model.lights:
+        keys.append(f"light{light.index}.color")
+        for name in LIGHT_FIELDS[1:]:
+            if (name, light.kind) in _LIGHT_TOKENS:
+                keys.append(f"light{light.index}.{name}")
+    return keys
+
+
+def default_keys(model: Scene) -> List[str]:
+    """The default set of fitted parameters (see the module docstring)."""
+    used = sorted({obj.material for obj in model.objects})
+    keys = []
+    for index in used:
+        material = model.materials[index]
+        if material.line is None:
+            continue  # the default material: no line to write it back to
+        names = ["color", "ambient_mix", "diffuse_mix", "specular_mix", "phong_coeff"]
+        if material.reflectivity > 0:
+            names.append("reflectivity")
+        if material.refractivity > 0:
+            names += ["refractivity", "ior"]
+        keys += [f"mat{index}.{name}" for name in names]
+    keys += [f"light{light.index}.color" for light in model.lights]
+    return keys
+
+
+def select_keys(model: Scene, requested: Optional[Sequence[str]]) -> List[str]:
+    """Resolve ``requested`` (exact keys or shell patterns such as ``mat1.*``) against
+    :func:`writable_keys`; None means :func:`default_keys`. Raises FitError naming the
+    valid keys when an item matches nothing."""
+    valid = writable_keys(model)
+    if requested is None:
+        return default_keys(model)
+    keys: List[str] = []
+    for item in requested:
+        item = item.strip()
+        if not item:
+            continue
+        matches = [k for k in valid if fnmatch.fnmatchcase(k, item)]
+        if not matches:
+            hint = ""
+            if item.startswith("mat0."):
+                hint = " (mat0, the default material, has no `material` line to write back to)"
+            raise FitError(f"unknown parameter `{item}`{hint}; valid keys: "
+                           + (", ".join(valid) if valid else "none (no material or light lines)"))
+        keys += [k for k in matches if k not in keys]
+    if not keys:
+        raise FitError("no parameters to fit")
+    return keys
+
+
+def field_of(key: str) -> str:
+    return key.rsplit(".", 1)[-1]
+
+
+# -- values ---------------------------------------------------------------------------------------
+def to_python(value) -> Value:
+    """A scene parameter as a float (scalars) or a tuple of floats (colors, points)."""
+    array = np.array(value.numpy(), dtype=np.float64).ravel()
+    return float(array[0]) if array.size == 1 else tuple(float(v) for v in array)
+
+
+def clamp_value(key: str, value: Value) -> Value:
+    """``value`` clamped into the range of the key's field."""
+    low = LOWER_BOUNDS.get(field_of(key))
+    if low is None:
+        return value
+    if isinstance(value, tuple):
+        return tuple(max(v, low) for v in value)
+    return max(value, low)
+
+
+def parameter_error(fitted: Dict[str, Value], truth: Dict[str, Value]) -> Dict[str, float]:
+    """Per key: the largest absolute difference between fitted and true components."""
+    out = {}
+    for key, value in fitted.items():
+        a = np.atleast_1d(np.asarray(value, np.float64))
+        b = np.atleast_1d(np.asarray(truth[key], np.float64))
+        out[key] = float(np.max(np.abs(a - b)))
+    return out
+
+
+def model_values(model: Scene, keys: Sequence[str]) -> Dict[str, Value]:
+    """The values of ``keys`` as written in ``model`` (e.g. a ground-truth scene)."""
+    out: Dict[str, Value] = {}
+    for key in keys:
+        owner, name = key.split(".", 1)
+        if owner.startswith("mat"):
+            index = int(owner[3:])
+            if index >= len(model.materials):
+                raise FitError(f"`{key}`: the scene has no material {index}")
+            value = getattr(model.materials[index], name)
+        else:
+            index = int(owner[5:])
+            if index > len(model.lights):
+                raise FitError(f"`{key}`: the scene has no light {index}")
+            light = model.lights[index - 1]
+            value = getattr(light, "shape" if name == "shape_coefficient" else name)
+            if value is None:
+                raise FitError(f"`{key}`: light {index} is a {light.kind.value} light "
+                               f"and has no {name}")
+        out[key] = tuple(float(v) for v in value) if isinstance(value, tuple) else float(value)
+    return out
+
+
+# -- the fit --------------------------------------------------------------------------------------
+@dataclass
+class Step:
+    """One iteration: the loss of the parameters *before* its update, and those parameters."""
+
+    iteration: int
+    loss: float
+    values: Dict[str, Value]
+
+
+@dataclass
+class FitResult:
+    keys: List[str]
+    start: Dict[str, Value]  # the values before the first step
+    fitted: Dict[str, Value]  # the values after the last step (clamped)
+    history: List[Step] = field(default_factory=list)
+    final_loss: float = math.nan  # the loss of ``fitted``
+    start_image: Optional[np.ndarray] = None
+    fitted_image: Optional[np.ndarray] = None
+    iterations: int = 0
+    seconds: float = 0.0
+
+    @property
+    def losses(self) -> List[float]:
+        """The loss before each step, then the final loss."""
+        return [s.loss for s in self.history] + [self.final_loss]
+
+
+def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
+        lr: float = 0.02, spp: Optional[int] = None,
+        callback: Optional[Callable[[Step], Optional[bool]]] = None,
+        final_lr: float = 0.1) -> FitResult:
+    """Fit the parameters ``keys`` of ``loaded`` (see :func:`raymitsuba.load`) to the linear
+    (H, W, 3) image ``target`` by Adam on the mean squared error; ``iters`` steps of
+    learning rate ``lr`` (relative, see the module docstring), decaying geometrically to
+    ``final_lr * lr`` at the last step. ``callback(step)`` runs after
+    each iteration; returning True stops the fit early. The scene's parameters hold the
+    fitted values afterwards. ``keys`` None: :func:`default_keys`; any differentiable key
+    of ``loaded.params`` is accepted (e.g. ``background.color``, clamped >= 0)."""
+    import drjit as dr
+
+    from raymitsuba.api import render
+    from raymitsuba.backend import mitsuba
+
+    mi = mitsuba()
+    params = loaded.params
+    keys = list(default_keys(loaded.model) if keys is None else keys)
+    if not keys:
+        raise FitError("no parameters to fit")
+    for key in keys:
+        if key not in params:
+            raise FitError(f"unknown parameter `{key}`; valid keys: {', '.join(params.keys())}")
+    target = np.asarray(target, dtype=np.float32)
+    shape = (loaded.options.height, loaded.options.width, 3)
+    if target.shape != shape:
+        raise FitError(f"the target is {target.shape[1]}x{target.shape[0]} but the scene is "
+                       f"loaded at {shape[1]}x{shape[0]}")
+    if not np.all(np.isfinite(target)):
+        raise FitError("the target image holds non-finite values")
+    if iters < 0 or not (lr > 0):
+        raise FitError("need iters >= 0 and lr > 0")
+    spp = int(spp or loaded.options.spp)
+    target_tensor = mi.TensorXf(target)
+
+    started = time.perf_counter()
+    optimizer = mi.ad.Adam(lr=lr)
+    start, scales = {}, {}
+    for key in keys:
+        start[key] = to_python(params[key])
+        optimizer[key] = typed(mi, params[key], clamp_value(key, start[key]))
+        scales[key] = max(1.0, float(np.max(np.abs(np.atleast_1d(start[key])))))
+    params.update(optimizer)
+    start = {key: to_python(optimizer[key]) for key in keys}  # clamped
+
+    result = FitResult(keys=keys, start=start, fitted=dict(start))
+    for iteration in range(iters):
+        image = render(loaded, spp=spp)
+        loss = dr.mean(dr.square(image - target_tensor), axis=None)
+        dr.backward(loss)
+        loss_value = float(loss.numpy().ravel()[0])
+        if iteration == 0:
+            result.start_image = image.numpy()
+        values = {key: to_python(optimizer[key]) for key in keys}
+        decay = final_lr ** (iteration / max(iters - 1, 1))
+        optimizer.set_learning_rate({key: lr * decay * scales[key] for key in keys})
+        optimizer.step()
+        for key in keys:
+            value = to_python(optimizer[key])
+            if not np.all(np.isfinite(value)):
+                raise FitError(f"the fit diverged: `{key}` became {value} at iteration "
+                               f"{iteration + 1}; try a smaller learning rate")
+            clamped = clamp_value(key, value)
+            if clamped != value:
+                optimizer[key] = typed(mi, params[key], clamped)
+        params.update(optimizer)
+        step = Step(iteration + 1, loss_value, values)
+        result.history.append(step)
+        result.iterations = iteration + 1
+        if callback is not None and callback(step):
+            break
+
+    # Leave the fitted values in the scene, detached from the optimizer.
+    for key in keys:
+        params[key] = dr.detach(optimizer[key])
+    params.update()
+    result.fitted = {key: to_python(params[key]) for key in keys}
+    with dr.suspend_grad():
+        final = render(loaded, spp=spp).numpy()
+    result.fitted_image = final
+    if result.start_image is None:
+        result.start_image = final
+    result.final_loss = float(np.mean(np.square(final.astype(np.float64) - target)))
+    result.seconds = time.perf_counter() - started
+    return result
+
+
+def typed(mi, like, value: Value):
+    """``value`` (float or tuple) as a Dr.Jit value of the same type as ``like``."""
+    if isinstance(value, tuple):
+        return type(like)(*value)
+    return mi.Float(value)
+
+
+# -- writing back ---------------------------------------------------------------------------------
+def _format(x: float) -> str:
+    text = f"{x:.6g}"
+    return "0" if text == "-0" else text
+
+
+def token_indices(model: Scene, key: str) -> Tuple[int, Tuple[int, ...]]:
+    """(1-based line, token numbers) of the operands of ``key`` in the .RAY text."""
+    owner, name = key.split(".", 1)
+    if owner.startswith("mat"):
+        material = model.materials[int(owner[3:])]
+        if material.line is None:
+            raise FitError(f"`{key}`: the default material has no `material` line")
+        return material.line, _MATERIAL_TOKENS[name]
+    light = model.lights[int(owner[5:]) - 1]
+    kind = None if name == "color" else light.kind
+    if (name, kind) not in _LIGHT_TOKENS:
+        raise FitError(f"`{key}`: a {light.kind.value} light has no {name}")
+    return light.line, _LIGHT_TOKENS[(name, kind)]
+
+
+def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value]) -> Union[bytes, str]:
+    """The .RAY source ``data`` with the operands of ``values``' keys replaced by the values.
+
+    Every other byte is kept. ``model`` must be the parse of ``data`` (its line numbers
+    locate the operands). A number whose value is unchanged (as float32, the precision of
+    the renderer) keeps its original spelling."""
+    is_bytes = isinstance(data, (bytes, bytearray))
+    text = bytes(data).decode("utf-8", "surrogateescape") if is_bytes else data
+    parts = _LINE_END.split(text)  # line, end, line, end, ..., line
+    edits: Dict[int, Dict[int, str]] = {}
+    for key, value in values.items():
+        line, tokens = token_indices(model, key)
+        components = value if isinstance(value, tuple) else (value,)
+        if len(components) != len(tokens):
+            raise FitError(f"`{key}`: expected {len(tokens)} value(s), got {len(components)}")
+        for token, component in zip(tokens, components):
+            if not math.isfinite(component):
+                raise FitError(f"`{key}`: cannot write the non-finite value {component}")
+            edits.setdefault(line, {})[token] = component
+    for line, changes in edits.items():
+        index = 2 * (line - 1)
+        if index >= len(parts):
+            raise FitError(f"line {line} is not in the scene text")
+        source = parts[index]
+        spans = [m.span() for m in _TOKEN.finditer(source)]
+        out, last = [], 0
+        for token in sorted(changes):
+            if token >= len(spans) or spans[token][0] >= _comment_start(source, spans):
+                raise FitError(f"line {line} does not have operand {token}: {source!r}")
+            begin, end = spans[token]
+            original = source[begin:end]
+            new = _format(changes[token])
+            if _same_float32(original, changes[token]):
+                new = original
+            out += [source[last:begin], new]
+            last = end
+        out.append(source[last:])
+        parts[index] = "".join(out)
+    result = "".join(parts)
+    return result.encode("utf-8", "surrogateescape") if is_bytes else result
+
+
+def _comment_start(source: str, spans) -> int:
+    """Offset of the first token starting with '#' (a trailing comment), else len(source)."""
+    for begin, _ in spans:
+        if source[begin] == "#":
+            return begin
+    return len(source)
+
+
+def _same_float32(token: str, value: float) -> bool:
+    try:
+        return np.float32(float(token)) == np.float32(value)
+    except ValueError:
+        return False
+
+
+def write_scene(path: str, data: Union[bytes, str]) -> None:
+    """Write ``data`` to ``path`` atomically (a temporary file renamed over it)."""
+    if isinstance(data, str):
+        data = data.encode("utf-8", "surrogateescape")
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".raymitsuba-", suffix=".ray", dir=directory)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
