@@ -141,7 +141,7 @@ class Surfaces:
             if obj.texture is not None:
                 surface["texture"] = {"type": "bitmap", "filename": obj.texture.path,
                                       "raw": not self.options.srgb, "wrap_mode": "repeat",
-                                      "filter_type": "bilinear"}
+                                      "filter_type": "bilinear", "to_uv": UV_TO_IMAGE(self.mi)}
             if obj.checker is not None:
                 surface["checker"] = {"type": "raychecker", "size": float(obj.checker)}
             self.dicts[surface_id] = surface
@@ -190,6 +190,12 @@ def shape(obj: SceneObject, model, options, mi) -> dict:
                 "center_x": float(eye[0]), "center_z": float(eye[2]),
                 "inner": height / 4.0, "outer": height * PLANE_REACH}
     raise ValueError(f"no shape for {obj.kind}")
+
+
+def UV_TO_IMAGE(mi):
+    """Texture coordinates to Mitsuba's bitmap lookup: v = 0 is the image's *bottom* row
+    (as in OpenGL and OBJ; Mitsuba's bitmap has v = 0 at the top), u = 0 its left column."""
+    return mi.ScalarTransform3f().translate([0.0, 1.0]) @ mi.ScalarTransform3f().scale([1.0, -1.0])
 
 
 TRIANGLE_UV = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
