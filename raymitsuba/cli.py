@@ -41,9 +41,12 @@ def check(ctx, scenes):
     ctx.exit(check_scenes(scenes, echo))
 
 
-from raymitsuba.render_cli import render  # noqa: E402  (its own module: the render command)
+# The render and fit commands live in modules of their own.
+from raymitsuba.fit_cli import fit  # noqa: E402
+from raymitsuba.render_cli import render  # noqa: E402
 
 main.add_command(render)
+main.add_command(fit)
 
 if __name__ == "__main__":
     sys.exit(main())
