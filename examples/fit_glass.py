@@ -23,7 +23,9 @@ d(color)/d(eta) = 0 at almost every pixel. All the information about eta lies
 in the checker *edges* moving across pixels as eta changes -- a discontinuity,
 whose derivative is a Dirac delta that these gradients (automatic
 differentiation of the traced rays, without edge sampling) do not see. The loss
-then looks flat to the optimizer, which stalls at its start value. With a
+then looks flat to the optimizer: with this scene's wall made a checkerboard
+(``checkerboard 0.4``) under ambient light only, eta stays exactly at its start
+value over 100 steps while kt drifts to 0.62 to match the mean brightness. With a
 smoothly lit background every pixel carries a derivative.
 
 The glass has no diffuse or specular term (kd = ks = 0) and kr = 0: a highlight
