@@ -13,10 +13,33 @@ Conventions, decided here once for every tessellated shape:
   a closed object. ``to_world`` then maps positions by M and normals by the
   inverse transpose of M; when det M < 0 the winding is reversed, so a
   mirroring transform does not turn a surface inside out.
+* No cracks: Mitsuba runs Embree in its non-robust mode, whose float32 edge
+  tests can reject a ray that passes exactly through an edge shared by two
+  triangles *on both sides*, leaving a background-colored pixel (it happens
+  systematically in symmetric views: a plane facing the camera, an ellipsoid's
+  equator ring at an odd resolution). So every face gets its own three vertices,
+  pushed away from its centroid by ``OVERLAP`` of its size, with texture
+  coordinates extrapolated alike: neighbours overlap by a sliver far wider than
+  the edge test's rounding error and far narrower than anything visible.
 """
 
 import numpy as np
 import mitsuba as mi
+
+
+OVERLAP = 1e-4  # relative growth of each face about its centroid (see "No cracks")
+
+
+def overlapping(positions, normals, texcoords, faces, grow=OVERLAP):
+    """Unshared vertices, each face grown about its centroid by ``grow`` (positions and
+    texture coordinates alike, so the texture mapping stays the same affine map)."""
+    def grown(values):
+        corners = np.asarray(values, np.float64)[faces]
+        centroid = corners.mean(axis=1, keepdims=True)
+        return (centroid + (corners - centroid) * (1.0 + grow)).reshape(-1, corners.shape[-1])
+
+    flat = np.arange(3 * len(faces)).reshape(-1, 3)
+    return grown(positions), normals[faces].reshape(-1, 3), grown(texcoords), flat
 
 
 def matrix(props):
@@ -51,6 +74,7 @@ def to_world(to_world, positions, normals, faces):
 def initialize(mesh, name, props, positions, normals, texcoords, faces, smooth=True):
     """Fill ``mesh`` (an mi.Mesh being constructed) with an object-space tessellation."""
     faces = orient_outward(positions, normals, faces)
+    positions, normals, texcoords, faces = overlapping(positions, normals, texcoords, faces)
     world_p, world_n, faces = to_world(matrix(props), positions, normals, faces)
     mi.Mesh.__init__(mesh, name, len(world_p), len(faces), props,
                      has_vertex_normals=smooth, has_vertex_texcoords=True)

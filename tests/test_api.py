@@ -1,0 +1,122 @@
+"""The Python API: load() from text, a path or a Scene; render(); the parameter keys that
+mi.traverse exposes, and that changing them changes the image as the contract says."""
+
+import math
+
+import numpy as np
+import pytest
+
+import raymitsuba
+from raymitsuba.model import RayError, Scene
+
+SCENE = """\
+background 0.1 0.2 0.3
+light 0.25 0.5 1 ambient
+light 1 1 1 point 0 0 5
+material 0.8 0.6 0.4  0.5 0.25 0 1  0 0 1
+sphere
+light 0.5 0.5 0.5 directional 0 0 -1
+light 1 0 0 spotlight 0 5 5  0 -1 0  2
+"""
+MATERIAL_FIELDS = ("color", "ambient_mix", "diffuse_mix", "specular_mix", "phong_coeff",
+                   "reflectivity", "refractivity", "ior")
+
+
+@pytest.fixture(scope="module")
+def loaded():
+    return raymitsuba.load(SCENE, width=9, height=9)
+
+
+def test_load_and_render(loaded, mitsuba):
+    import drjit as dr
+
+    assert isinstance(loaded.model, Scene)
+    assert (loaded.options.width, loaded.options.height, loaded.options.spp,
+            loaded.options.max_depth, loaded.options.srgb) == (9, 9, 1, 5, False)
+    assert isinstance(loaded.scene, mitsuba.Scene)
+    assert loaded.scene_dict["integrator"]["type"] == "raywhitted"
+    image = raymitsuba.render(loaded)
+    assert isinstance(image, mitsuba.TensorXf) and dr.shape(image) == (9, 9, 3)
+    pixels = np.array(image)
+    # The centre pixel: N = L = V = (0, 0, 1) for the point and the directional light, and
+    # the spotlight at (0, 5, 5) sees the point (0, 0, 1) at cos a = 5 / sqrt(41), with
+    # N.L = 4 / sqrt(41): ka A C + kd C (I_point + I_dir + I_spot cos^2 a N.L).
+    color = np.array([0.8, 0.6, 0.4])
+    cos_a = 5 / math.sqrt(41)
+    want = 0.5 * np.array([0.25, 0.5, 1]) * color + 0.25 * color * (
+        1 + 0.5 + np.array([1, 0, 0]) * cos_a ** 2 * 4 / math.sqrt(41))
+    np.testing.assert_allclose(pixels[4, 4], want, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(pixels[0, 0], [0.1, 0.2, 0.3], rtol=0, atol=1e-7)
+
+
+def test_load_from_a_path_and_from_a_scene(tmp_path, loaded):
+    from PIL import Image
+
+    (tmp_path / "tex").mkdir()
+    Image.new("RGB", (2, 2), (255, 255, 255)).save(tmp_path / "tex" / "white.png")
+    path = tmp_path / "scene.ray"
+    path.write_text(SCENE.replace("sphere\n", "texture tex/white.png\nsphere\n"))  # relative
+    want = np.array(raymitsuba.render(loaded))
+    for source in (str(path), path, raymitsuba.parse_file(str(path))):
+        from_file = raymitsuba.load(source, width=9, height=9)
+        np.testing.assert_allclose(np.array(raymitsuba.render(from_file)), want,
+                                   rtol=0, atol=1e-6)  # a white texel changes nothing
+    model = raymitsuba.parse_text(SCENE)
+    again = raymitsuba.load(model, width=9, height=9)
+    assert again.model is model
+    assert np.array(raymitsuba.render(again)).tobytes() == want.tobytes()
+
+
+def test_load_rejects_a_bad_scene():
+    with pytest.raises(RayError):
+        raymitsuba.load("sphere 1\n", width=4, height=4)
+
+
+def test_parameter_keys(loaded):
+    keys = set(loaded.params.keys())
+    for i in (0, 1):
+        for field in MATERIAL_FIELDS:
+            assert f"mat{i}.{field}" in keys
+    assert "mat2.color" not in keys
+    assert {"light1.color", "light2.color", "light2.position", "light3.color",
+            "light3.direction", "light4.color", "light4.position", "light4.direction",
+            "light4.shape_coefficient", "background.color"} <= keys
+    # each light exposes only what its kind has
+    assert not {"light1.position", "light1.direction", "light2.direction",
+                "light2.shape_coefficient", "light3.position", "light0.color"} & keys
+
+
+def test_changing_parameters_changes_the_render():
+    loaded = raymitsuba.load(SCENE, width=9, height=9)
+    params = loaded.params
+    params["mat1.color"] = [0.2, 0.4, 1.0]
+    params["mat1.diffuse_mix"] = 0.0
+    params["light1.color"] = [1.0, 1.0, 1.0]
+    params["background.color"] = [0.0, 0.5, 0.0]
+    params.update()
+    pixels = np.array(raymitsuba.render(loaded))
+    # only the ambient term is left: ka A C with the new A and C
+    np.testing.assert_allclose(pixels[4, 4], 0.5 * np.array([0.2, 0.4, 1.0]), rtol=0, atol=1e-6)
+    np.testing.assert_allclose(pixels[0, 0], [0.0, 0.5, 0.0], rtol=0, atol=1e-7)
+
+    params["mat1.diffuse_mix"] = 1.0
+    params["mat1.ambient_mix"] = 0.0
+    params["light2.color"] = [0.0, 0.0, 0.0]
+    params["light4.color"] = [0.0, 0.0, 0.0]
+    params["light3.direction"] = [-3.0, 0.0, -4.0]  # now from (3, 0, 4) / 5: N.L = 4 / 5
+    params.update()
+    pixels = np.array(raymitsuba.render(loaded))
+    np.testing.assert_allclose(pixels[4, 4], 0.5 * 0.8 * np.array([0.2, 0.4, 1.0]),
+                               rtol=0, atol=1e-6)
+
+
+def test_render_spp_override():
+    text = ("light 1 1 1 ambient\nmaterial 1 1 1  1 0 0 1  0 0 1\n"
+            "triangle -14 -9.7 0  14 9.9 0  -20 20 0\n")
+    one = raymitsuba.load(text, width=12, height=12)
+    four = raymitsuba.load(text, width=12, height=12, spp=4)
+    assert four.options.spp == 4
+    a = np.array(raymitsuba.render(one, spp=4))
+    b = np.array(raymitsuba.render(four))
+    assert a.tobytes() == b.tobytes()
+    assert not np.array_equal(a, np.array(raymitsuba.render(one)))  # edge pixels differ

@@ -1,0 +1,128 @@
+"""The checkerboard: squares of side s in the plane's object space; the square containing
+object-space (x, z) has the base color C when floor(x/s) + floor(z/s) is even and is black
+when it is odd. Only planes declared after ``checkerboard s`` (s > 0) are checkered."""
+
+import numpy as np
+import pytest
+
+from conftest import camera_rays, normalize, render_ray, rotation, scaling, stack, translation
+
+EYE, LOOKAT = (0.0, 2.0, 5.0), (0.0, -1.0, 0.0)
+
+
+def _floor_hits(width, height, to_world):
+    """Object-space (x, z) of the pixel rays' hits on the plane (nan where they miss) and
+    the distance of each hit from the camera."""
+    o, d = camera_rays(width, height, eye=EYE, lookat=LOOKAT)
+    inv = np.linalg.inv(to_world)
+    o_obj = inv[:3, :3] @ np.asarray(o) + inv[:3, 3]
+    d_obj = d @ inv[:3, :3].T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -o_obj[1] / d_obj[..., 1]
+    t = np.where(t > 0, t, np.nan)
+    p = o_obj + t[..., None] * d_obj
+    return p[..., 0], p[..., 2], t * np.linalg.norm(d_obj, axis=-1)
+
+
+def _parity_image(x, z, size, color, background):
+    even = (np.floor(x / size) + np.floor(z / size)) % 2 == 0
+    return np.where(np.isnan(x)[..., None], background,
+                    np.where(even[..., None], color, 0.0))
+
+
+def _off_edges(x, z, size, distance):
+    """Hits clearly inside a square: farther than 1e-4 (x (1 + distance)) from its edges,
+    float32's resolution of the hit point with margin; and not near the horizon, where a
+    pixel covers many squares."""
+    def clear(u):
+        return np.abs(u / size - np.round(u / size)) * size > 1e-4 * (1 + distance)
+    return np.isnan(x) | (clear(x) & clear(z) & (distance < 50))
+
+
+@pytest.mark.parametrize("size", [0.5, 1.3])
+def test_checker_parity_on_a_translated_floor(size):
+    # Ambient light only: each pixel is exactly C or black (or the background above the
+    # horizon). The plane is moved by (0.3, -1, 0.2): squares follow its object space.
+    width = height = 32
+    color = np.array([0.9, 0.7, 0.2])
+    image = render_ray(f"eye {EYE[0]} {EYE[1]} {EYE[2]}\nlookat 0 -1 0\n"
+                       "background 0.1 0.2 0.3\nlight 1 1 1 ambient\n"
+                       "material 0.9 0.7 0.2  1 0 0 1  0 0 1\n"
+                       f"checkerboard {size}\ntranslate 0.3 -1 0.2\nplane\n", width, height)
+    x, z, distance = _floor_hits(width, height, translation(0.3, -1, 0.2))
+    want = _parity_image(x, z, size, color, [0.1, 0.2, 0.3])
+    ok = _off_edges(x, z, size, distance)
+    assert ok.mean() > 0.8
+    both = (want[ok] == color).all(-1).sum(), (want[ok] == 0).all(-1).sum()
+    assert min(both) > 50  # plenty of both kinds of square
+    assert np.any(np.isfinite(x) & (x < 0)) and np.any(np.isfinite(z) & (z < 0))  # floor() < 0
+    np.testing.assert_allclose(image[ok], want[ok], rtol=0, atol=1e-7)
+
+
+def test_checker_lives_in_the_planes_object_space():
+    # scale 2 1 1, rotateY 30, translate 0 -1 0: the squares are 2s x s in the world,
+    # turned by 30 degrees.
+    width = height = 32
+    to_world = stack(scaling(2, 1, 1), rotation("y", 30), translation(0, -1, 0))
+    image = render_ray(f"eye {EYE[0]} {EYE[1]} {EYE[2]}\nlookat 0 -1 0\n"
+                       "light 1 1 1 ambient\nmaterial 1 1 1  1 0 0 1  0 0 1\n"
+                       "checkerboard 0.5\nscale 2 1 1\nrotateY 30\ntranslate 0 -1 0\nplane\n",
+                       width, height)
+    x, z, distance = _floor_hits(width, height, to_world)
+    want = _parity_image(x, z, 0.5, np.ones(3), 0.0)
+    ok = _off_edges(x, z, 0.5, distance)
+    assert ok.mean() > 0.75
+    np.testing.assert_allclose(image[ok], want[ok], rtol=0, atol=1e-7)
+
+
+def test_black_squares_keep_the_untinted_highlight():
+    # The checker multiplies C only: a black square still gets ks (R.V)^n I (the highlight is
+    # not tinted), and a colored square gets kd C N.L on top.
+    width = height = 32
+    light = np.array([0.0, 2.0, 0.0])
+    image = render_ray(f"eye {EYE[0]} {EYE[1]} {EYE[2]}\nlookat 0 -1 0\n"
+                       "light 1 1 1 point 0 2 0\nmaterial 1 0.5 0  0 0.5 0.5 3  0 0 1\n"
+                       "checkerboard 0.5\ntranslate 0 -1 0\nplane\n", width, height)
+    x, z, distance = _floor_hits(width, height, translation(0, -1, 0))
+    p = np.stack([x, np.full_like(x, -1.0), z], -1)
+    l = normalize(light - p)
+    v = normalize(np.asarray(EYE) - p)
+    n_dot_l = l[..., 1]
+    r = 2 * n_dot_l[..., None] * np.array([0.0, 1.0, 0.0]) - l
+    spec = np.maximum(np.sum(r * v, -1), 0.0) ** 3
+    even = (np.floor(x / 0.5) + np.floor(z / 0.5)) % 2 == 0
+    want = 0.5 * spec[..., None] + np.where(even[..., None], 0.5 * np.array([1, 0.5, 0]) *
+                                            n_dot_l[..., None], 0.0)
+    want = np.where(np.isnan(x)[..., None], 0.0, want)
+    ok = _off_edges(x, z, 0.5, distance)
+    odd_lit = ok & ~even & np.isfinite(x) & (spec > 0.05)
+    assert odd_lit.sum() > 10  # highlights on black squares are in the image
+    # float32 shading of values <= 1: 1e-5 (see test_phong.py)
+    np.testing.assert_allclose(image[ok], want[ok], rtol=0, atol=1e-5)
+
+
+def test_checkerboard_applies_to_planes_only_and_can_be_turned_off():
+    # checkerboard on, then a sphere (not checkered), then `checkerboard -1` and a plane
+    # (not checkered), then `checkerboard 0` (also off) and another plane.
+    width = height = 24
+    image = render_ray("light 1 1 1 ambient\nmaterial 1 1 1  1 0 0 1  0 0 1\n"
+                       "checkerboard 0.1\nscale 0.5 0.5 0.5\ntranslate 0 0.5 0\nsphere\nreset\n"
+                       "checkerboard -1\ntranslate 0 -1 0\nplane\nreset\n"
+                       "checkerboard 0\nrotateX 90\ntranslate 0 0 -5\nplane\n", width, height)
+    np.testing.assert_array_equal(image, np.ones(image.shape, np.float32))
+
+
+@pytest.mark.parametrize("size", [0.5, 2.0])
+def test_checker_texture_plugin(mitsuba, size):
+    mi = mitsuba
+    checker = mi.load_dict({"type": "raychecker", "size": size})
+    uv = np.array([[0.1, 0.1], [0.6, 0.1], [-0.1, 0.1], [-0.1, -0.1], [0.99, 0.49],
+                   [1.0, 0.0], [0.5, 0.5], [-1.2, 3.7], [100.3, -7.9]]) * size / 0.5
+    si = mi.SurfaceInteraction3f()
+    si.uv = mi.Point2f(np.ascontiguousarray(uv[:, 0], np.float32),
+                       np.ascontiguousarray(uv[:, 1], np.float32))
+    got = np.array(checker.eval(si)).T
+    cells = np.floor(uv[:, 0] / size) + np.floor(uv[:, 1] / size)
+    want = np.where(cells % 2 == 0, 1.0, 0.0)
+    np.testing.assert_array_equal(got, np.repeat(want[:, None], 3, axis=1))
+    assert want.tolist() == [1, 0, 0, 1, 0, 1, 1, 1, 1]  # (worked out by hand)
