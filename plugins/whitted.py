@@ -231,7 +231,7 @@ class Whitted(mi.CppADIntegrator):
 
         generations = []
         for depth in range(self.max_depth + 1):
-            si = scene.ray_intersect(ray)
+            si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
             hit = si.is_valid()
             slot = surfaces.slot(si, hit)
             color = surfaces.base_color(si, slot, hit)
