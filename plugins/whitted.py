@@ -220,6 +220,8 @@ class Whitted(mi.CppADIntegrator):
         """Color of each ray of ``ray`` (one lane each) through the whole tree."""
         self.loop_mode = loop_mode
         surfaces = Surfaces(scene)
+        self.smooth_meshes = [shape for shape in scene.shapes()
+                              if shape.is_mesh() and shape.has_vertex_normals()]
         lights = [e for e in scene.emitters() if isinstance(e, Light)]
         backgrounds = [e for e in scene.emitters() if isinstance(e, Background)]
         background = backgrounds[0].color if backgrounds else mi.Color3f(0.0)
@@ -267,17 +269,52 @@ class Whitted(mi.CppADIntegrator):
         ks = surfaces.get("specular_mix", slot, hit)
         exponent = surfaces.get("phong_coeff", slot, hit)
         n, v = self.facing_normal(si, ray), -ray.d
+        lifted = self.lifted_point(si, hit)
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
-            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active)
+            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, lifted)
             phong = phong_local(n, v, wi, color, kd, ks, exponent)
             result += dr.select(active, intensity * phong * transmittance, 0.0)
         return result
 
-    def transmittance(self, scene, surfaces, si, wi, dist, active):
+    def lifted_point(self, si, active):
+        """Where shadow rays leave a smooth-shaded mesh near its terminator (None: no such mesh).
+
+        Where the shading normal faces a light but the flat facet that was hit does not,
+        a shadow ray leaving the facet would run through the mesh's own far side and
+        shadow a point that the contract says is lit (a convex object never shadows
+        itself). Such a ray starts instead from the hit point lifted off its facet onto
+        the smooth surface that the vertex normals describe (Hanika, "Hacking the shadow
+        terminator", Ray Tracing Gems II, 2021): the barycentric average of its
+        projections onto the tangent planes of the corners it lies below, then a ray
+        epsilon out along the shading normal.
+        """
+        if not self.smooth_meshes:
+            return None
+        lifted = mi.Point3f(si.p)
+        for mesh in self.smooth_meshes:
+            mask = active & (si.shape == mi.ShapePtr(mesh))
+            face = mesh.face_indices(si.prim_index, mask)
+            corners = [mesh.vertex_position(face[k], mask) for k in range(3)]
+            normals = [mesh.vertex_normal(face[k], mask) for k in range(3)]
+            e1, e2, q = corners[1] - corners[0], corners[2] - corners[0], si.p - corners[0]
+            d11, d12, d22 = dr.dot(e1, e1), dr.dot(e1, e2), dr.dot(e2, e2)
+            q1, q2 = dr.dot(q, e1), dr.dot(q, e2)
+            inv = dr.rcp(d11 * d22 - d12 * d12)
+            w1, w2 = (d22 * q1 - d12 * q2) * inv, (d11 * q2 - d12 * q1) * inv
+            p = mi.Point3f(si.p)
+            for w, corner, n in zip((1.0 - w1 - w2, w1, w2), corners, normals):
+                p -= w * dr.minimum(dr.dot(si.p - corner, n), 0.0) * n
+            lifted = dr.select(mask, p, lifted)
+        return lifted + (1.0 + dr.max(dr.abs(lifted))) * mi.math.RayEpsilon * si.sh_frame.n
+
+    def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None):
         """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
         ray = si.spawn_ray(wi)
+        if lifted is not None:  # see lifted_point
+            terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
+            ray.o = dr.select(terminator, lifted, ray.o)
         ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
         if self.loop_mode == "symbolic" and not surfaces.transparent:
             # Nothing lets light through, and no derivative is wanted: any hit blocks.
