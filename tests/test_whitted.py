@@ -26,7 +26,7 @@ def grazing(o, d, center, radius, margin=1e-4):
     renderer may decide those either way; tests skip them."""
     oc = np.asarray(o, float) - center
     b = np.sum(oc * d, axis=-1)
-    closest = np.sqrt(np.maximum(np.sum(oc * oc) - b * b, 0.0))
+    closest = np.sqrt(np.maximum(np.sum(oc * oc, axis=-1) - b * b, 0.0))
     return np.abs(closest - radius) < margin * radius
 
 
