@@ -12,8 +12,10 @@ reflection + refraction tree) and each sample count it measures:
 * first render: a fresh process with the kernel cache as it is;
 * warm render: median of repeated renders in one process;
 * native direct: Mitsuba's own ``direct`` integrator on the same geometry (diffuse
-  materials, the same point lights, one emitter sample, no BSDF sample), warm;
-  the ratio is per camera ray (both trace width x height x spp camera rays);
+  materials, the same point lights, one emitter sample per point light, no BSDF
+  sample), warm; the ratio is per camera ray (both trace width x height x spp
+  camera rays; raywhitted also traces the reflected and refracted rays, whose
+  number per camera ray is printed as rays/cam);
 * process: wall time of the whole ``raymitsuba render`` command;
 * POV-Ray: wall time of ``povray`` on an export of the same scene, when installed;
 
@@ -68,7 +70,7 @@ def warm_renders(path, width, height, spp, repeats):
         t = time.perf_counter()
         raymitsuba.render(loaded).numpy()
         times.append(time.perf_counter() - t)
-    return times
+    return {"times": times, "rays": loaded.integrator.rays_per_generation}
 
 
 def native_direct(path, width, height, spp, repeats):
@@ -91,7 +93,9 @@ def native_direct(path, width, height, spp, repeats):
         elif kind == "raybackground":
             native[key] = {"type": "constant"}
         elif key == "integrator":
-            native[key] = {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0}
+            # One shadow ray per point light per camera ray, as raywhitted's first generation.
+            lights = sum(1 for v in source.values() if isinstance(v, dict) and v.get("kind") == "point")
+            native[key] = {"type": "direct", "emitter_samples": max(lights, 1), "bsdf_samples": 0}
         else:
             native[key] = value
     scene = mi.load_dict(native)
@@ -205,7 +209,8 @@ def main():
             cold_home = tempfile.mkdtemp(prefix="home-", dir=work)
             cold = child({"what": "first", **common}, env=dict(os.environ, HOME=cold_home))
             first = [child({"what": "first", **common})["first"] for _ in range(1 if args.quick else 3)]
-            warm = child({"what": "warm", "repeats": repeats, **common})
+            warm_run = child({"what": "warm", "repeats": repeats, **common})
+            warm, rays = warm_run["times"], warm_run["rays"]
             direct = child({"what": "direct", "repeats": repeats, **common})
             out = os.path.join(work, "out.exr")
             process = wall([sys.executable, "-m", "raymitsuba", "render", path, "-o", out,
@@ -213,15 +218,17 @@ def main():
             pov = povray_times(path, w, h, spp, max(3, repeats // 2), work)
             rows.append({"scene": name, "spp": spp, "cold_first": cold["first"], "first": median(first),
                          "warm": median(warm), "direct": median(direct), "process": median(process),
-                         "povray": median(pov) if pov else None})
+                         "povray": median(pov) if pov else None,
+                         "rays": sum(rays) / (w * h * spp)})
     print()
     print(f"{'scene':22} {'spp':>3} {'cold 1st':>9} {'1st':>7} {'warm':>7} {'direct':>7} "
-          f"{'warm/dir':>8} {'process':>8} {'povray':>7} {'pov/proc':>8}")
+          f"{'warm/dir':>8} {'process':>8} {'povray':>7} {'pov/proc':>8} {'rays/cam':>8}")
     for r in rows:
         pov = f"{r['povray']:7.2f}" if r["povray"] else "    n/a"
         ratio = f"{r['povray'] / r['process']:8.2f}" if r["povray"] else "     n/a"
         print(f"{r['scene']:22} {r['spp']:3d} {r['cold_first']:9.2f} {r['first']:7.2f} {r['warm']:7.3f} "
-              f"{r['direct']:7.3f} {r['warm'] / r['direct']:8.1f} {r['process']:8.2f} {pov} {ratio}")
+              f"{r['direct']:7.3f} {r['warm'] / r['direct']:8.1f} {r['process']:8.2f} {pov} {ratio}"
+              f" {r['rays']:8.2f}")
     for spp in (1, 4):
         refl = [r for r in rows if r["spp"] == spp and r["scene"] == SCENES[0]][0]
         glass = [r for r in rows if r["spp"] == spp and r["scene"] == SCENES[1]][0]

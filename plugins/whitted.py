@@ -166,6 +166,7 @@ class Whitted(mi.CppADIntegrator):
         if self.max_depth < 0:
             raise ValueError("raywhitted: max_depth must be >= 0")
         self.progress = None  # optional callable(generations_done), set by the CLI
+        self.rays_per_generation = []  # of the last render: how many rays each depth traced
 
     # -- mi.Integrator interface ---------------------------------------------------------------
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
@@ -232,7 +233,9 @@ class Whitted(mi.CppADIntegrator):
         direct = [light for light in lights if not light.is_ambient]
 
         generations = []
+        self.rays_per_generation = []
         for depth in range(self.max_depth + 1):
+            self.rays_per_generation.append(dr.width(ray))
             si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
             hit = si.is_valid()
             slot = surfaces.slot(si, hit)
@@ -252,6 +255,7 @@ class Whitted(mi.CppADIntegrator):
         color = None
         for generation in reversed(generations):
             color = generation.color(color)
+            dr.eval(color)  # once for all three channels: the next step gathers from each
         return color
 
     def facing_normal(self, si, ray):
@@ -316,9 +320,12 @@ class Whitted(mi.CppADIntegrator):
             terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
             ray.o = dr.select(terminator, lifted, ray.o)
         ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
+        # A cheap any-hit test first: most shadow rays cross nothing, and then the
+        # transmittance is exactly 1 (with no derivative). Only the others walk their crossings.
+        blocked = scene.ray_test(ray, active)
         if self.loop_mode == "symbolic" and not surfaces.transparent:
             # Nothing lets light through, and no derivative is wanted: any hit blocks.
-            return dr.select(scene.ray_test(ray, active), 0.0, 1.0)
+            return dr.select(blocked, 0.0, 1.0)
 
         def body(ray, transmittance, crossings, active):
             # Only the distance and the BSDF of each crossing matter: a preliminary
@@ -339,7 +346,7 @@ class Whitted(mi.CppADIntegrator):
                            dr.select(onward, ray.maxt - crossing.t - step, ray.maxt))
             return ray, transmittance, crossings, onward & (crossings < self.max_shadow_crossings)
 
-        state = (ray, mi.Float(1.0), mi.UInt32(0), mi.Bool(active))
+        state = (ray, mi.Float(1.0), mi.UInt32(0), mi.Bool(active & blocked))
         _, transmittance, _, _ = dr.while_loop(state, lambda *s: s[-1], body,
                                                mode=self.loop_mode, label="shadow ray")
         return transmittance
