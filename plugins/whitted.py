@@ -89,21 +89,58 @@ def stratum_offset(s, spp):
 
 
 class Generation:
-    """One depth of the ray tree: local colors, and where each lane's children are."""
+    """One depth of the ray tree, as the trace leaves it.
 
-    def __init__(self, local, weight_r=None, child_r=None, has_r=None,
-                 weight_t=None, child_t=None, has_t=None):
-        self.local = local
-        self.weight_r, self.child_r, self.has_r = weight_r, child_r, has_r
-        self.weight_t, self.child_t, self.has_t = weight_t, child_t, has_t
+    Per lane (one lane per ray of this depth): ``local`` (L_local, or the
+    background on a miss), the weights of the reflected and refracted children
+    and, where a child exists (``has_r`` / ``has_t``), its lane in the next
+    generation (``child_r`` / ``child_t``); finally ``color``, the color of the
+    lane's whole subtree.
+    """
 
-    def color(self, deeper):
-        """This generation's colors given the colors of the next one (None at the leaves)."""
-        if deeper is None or self.child_r is None:
+    def __init__(self, local):
+        self.local, self.color = local, None
+        self.weight_r = self.child_r = self.has_r = None
+        self.weight_t = self.child_t = self.has_t = None
+
+    @property
+    def has_children(self):
+        return self.child_r is not None
+
+    def subtree_color(self, deeper):
+        """This generation's colors given the colors of the next one (None: no next one)."""
+        if deeper is None or not self.has_children:
             return self.local
-        reflected = dr.gather(mi.Color3f, deeper, self.child_r, self.has_r)
-        refracted = dr.gather(mi.Color3f, deeper, self.child_t, self.has_t)
-        return self.local + self.weight_r * reflected + self.weight_t * refracted
+        return self.local + self.weight_r * dr.gather(mi.Color3f, deeper, self.child_r, self.has_r) \
+            + self.weight_t * dr.gather(mi.Color3f, deeper, self.child_t, self.has_t)
+
+
+class SceneTerms:
+    """What shading needs from the scene, read from its plugins at the start of a render:
+    the surfaces' parameters, the lights, the summed ambient light, the background."""
+
+    def __init__(self, scene):
+        self.surfaces = Surfaces(scene)
+        self.smooth_meshes = [shape for shape in scene.shapes()
+                              if shape.is_mesh() and shape.has_vertex_normals()]
+        lights = [e for e in scene.emitters() if isinstance(e, Light)]
+        backgrounds = [e for e in scene.emitters() if isinstance(e, Background)]
+        self.background = backgrounds[0].color if backgrounds else mi.Color3f(0.0)
+        self.ambient = mi.Color3f(0.0)
+        for light in lights:
+            if light.is_ambient:
+                self.ambient += light.color
+        self.direct = [light for light in lights if not light.is_ambient]
+
+
+class Step:
+    """What one generation computes for its rays: the local colors and, unless it is
+    the deepest, the children's weights and rays (reflected and refracted, per lane)."""
+
+    def __init__(self, local, hit, weights=None, rays=None):
+        self.local, self.hit = local, hit
+        self.weight_r, self.weight_t = weights if weights else (None, None)
+        self.reflected, self.refracted = rays if rays else (None, None)
 
 
 class Surfaces:
@@ -218,35 +255,19 @@ class Whitted(mi.CppADIntegrator):
 
     # -- the ray tree --------------------------------------------------------------------------
     def trace(self, scene, ray, loop_mode):
-        """Color of each ray of ``ray`` (one lane each) through the whole tree."""
-        self.loop_mode = loop_mode
-        surfaces = Surfaces(scene)
-        self.smooth_meshes = [shape for shape in scene.shapes()
-                              if shape.is_mesh() and shape.has_vertex_normals()]
-        lights = [e for e in scene.emitters() if isinstance(e, Light)]
-        backgrounds = [e for e in scene.emitters() if isinstance(e, Background)]
-        background = backgrounds[0].color if backgrounds else mi.Color3f(0.0)
-        ambient = mi.Color3f(0.0)
-        for light in lights:
-            if light.is_ambient:
-                ambient += light.color
-        direct = [light for light in lights if not light.is_ambient]
-
+        """The color of each ray of ``ray`` (one lane per ray) through its whole tree."""
+        terms = SceneTerms(scene)
         generations = []
         self.rays_per_generation = []
         for depth in range(self.max_depth + 1):
             self.rays_per_generation.append(dr.width(ray))
-            si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
-            hit = si.is_valid()
-            slot = surfaces.slot(si, hit)
-            color = surfaces.base_color(si, slot, hit)
-            local = self.shade(scene, surfaces, si, slot, color, ray, ambient, direct)
-            local = dr.select(hit, local, background)
-            if depth == self.max_depth:
-                generations.append(Generation(local))
-                break
-            generation, ray = self.spawn(surfaces, si, slot, ray, hit, local)
+            last = depth == self.max_depth
+            step = self.step(scene, terms, ray, depth, loop_mode, not last)
+            generation = Generation(step.local)
             generations.append(generation)
+            if last:
+                break
+            ray = self.spawn(generation, step)
             if self.progress is not None:
                 self.progress(depth + 1)
             if ray is None:
@@ -254,26 +275,50 @@ class Whitted(mi.CppADIntegrator):
 
         color = None
         for generation in reversed(generations):
-            color = generation.color(color)
+            color = generation.subtree_color(color)
             dr.eval(color)  # once for all three channels: the next step gathers from each
         return color
+
+    def step(self, scene, terms, ray, depth, loop_mode, children):
+        """Intersect and shade ``ray``; with ``children``, also the children's weights and rays."""
+        self.loop_mode = loop_mode
+        si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
+        hit = si.is_valid()
+        surfaces = terms.surfaces
+        slot = surfaces.slot(si, hit)
+        color = surfaces.base_color(si, slot, hit)
+        local = self.shade(scene, terms, si, slot, color, ray)
+        local = dr.select(hit, local, terms.background)
+        if not children:
+            return Step(local, hit)
+        kr = surfaces.get("reflectivity", slot, hit)
+        kt = surfaces.get("refractivity", slot, hit)
+        eta = surfaces.get("ior", slot, hit)
+        v = -ray.d
+        n = self.facing_normal(si, ray)
+        entering = dr.dot(si.n, ray.d) < 0
+        refracted_d, tir = refract(v, n, dr.select(entering, dr.rcp(eta), eta))
+        weights = (kr + dr.select(tir, kt, 0.0), dr.select(tir, 0.0, kt))
+        rays = (si.spawn_ray(reflect(v, n)), si.spawn_ray(refracted_d))
+        return Step(local, hit, weights, rays)
 
     def facing_normal(self, si, ray):
         """The shading normal flipped to the side the ray comes from."""
         n = si.sh_frame.n
         return dr.select(dr.dot(n, ray.d) > 0, -n, n)
 
-    def shade(self, scene, surfaces, si, slot, color, ray, ambient, lights):
+    def shade(self, scene, terms, si, slot, color, ray):
         """L_local at each hit: ambient term plus each light's shadowed Phong term."""
         hit = si.is_valid()
-        result = ambient * surfaces.get("ambient_mix", slot, hit) * color
+        surfaces, lights = terms.surfaces, terms.direct
+        result = terms.ambient * surfaces.get("ambient_mix", slot, hit) * color
         if not lights:
             return result
         kd = surfaces.get("diffuse_mix", slot, hit)
         ks = surfaces.get("specular_mix", slot, hit)
         exponent = surfaces.get("phong_coeff", slot, hit)
         n, v = self.facing_normal(si, ray), -ray.d
-        lifted = self.lifted_point(si, hit)
+        lifted = self.lifted_point(terms.smooth_meshes, si, hit)
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
@@ -282,7 +327,7 @@ class Whitted(mi.CppADIntegrator):
             result += dr.select(active, intensity * phong * transmittance, 0.0)
         return result
 
-    def lifted_point(self, si, active):
+    def lifted_point(self, smooth_meshes, si, active):
         """Where shadow rays leave a smooth-shaded mesh near its terminator (None: no such mesh).
 
         Where the shading normal faces a light but the flat facet that was hit does not,
@@ -294,10 +339,10 @@ class Whitted(mi.CppADIntegrator):
         projections onto the tangent planes of the corners it lies below, then a ray
         epsilon out along the shading normal.
         """
-        if not self.smooth_meshes:
+        if not smooth_meshes:
             return None
         lifted = mi.Point3f(si.p)
-        for mesh in self.smooth_meshes:
+        for mesh in smooth_meshes:
             mask = active & (si.shape == mi.ShapePtr(mesh))
             face = mesh.face_indices(si.prim_index, mask)
             corners = [mesh.vertex_position(face[k], mask) for k in range(3)]
@@ -323,9 +368,18 @@ class Whitted(mi.CppADIntegrator):
         # A cheap any-hit test first: most shadow rays cross nothing, and then the
         # transmittance is exactly 1 (with no derivative). Only the others walk their crossings.
         blocked = scene.ray_test(ray, active)
-        if self.loop_mode == "symbolic" and not surfaces.transparent:
-            # Nothing lets light through, and no derivative is wanted: any hit blocks.
-            return dr.select(blocked, 0.0, 1.0)
+        # The transmittance depends on the parameters only through the kt of the surfaces
+        # crossed (*which* surfaces are crossed changes in jumps). Unless a derivative
+        # with respect to some kt is wanted, it is computed detached, in a symbolic loop.
+        if dr.grad_enabled(surfaces.refractivity):
+            return self.crossings(scene, surfaces, ray, wi, active & blocked, self.loop_mode)
+        with dr.suspend_grad():
+            if not surfaces.transparent:
+                return dr.select(blocked, 0.0, 1.0)  # nothing lets light through
+            return self.crossings(scene, surfaces, ray, wi, active & blocked, "symbolic")
+
+    def crossings(self, scene, surfaces, ray, wi, active, mode):
+        """Product of kt over the surfaces that ``ray`` crosses (0 past max_shadow_crossings)."""
 
         def body(ray, transmittance, crossings, active):
             # Only the distance and the BSDF of each crossing matter: a preliminary
@@ -346,41 +400,34 @@ class Whitted(mi.CppADIntegrator):
                            dr.select(onward, ray.maxt - crossing.t - step, ray.maxt))
             return ray, transmittance, crossings, onward & (crossings < self.max_shadow_crossings)
 
-        state = (ray, mi.Float(1.0), mi.UInt32(0), mi.Bool(active & blocked))
+        state = (ray, mi.Float(1.0), mi.UInt32(0), mi.Bool(active))
         _, transmittance, _, _ = dr.while_loop(state, lambda *s: s[-1], body,
-                                               mode=self.loop_mode, label="shadow ray")
+                                               mode=mode, label="shadow ray")
         return transmittance
 
-    def spawn(self, surfaces, si, slot, ray, hit, local):
-        """This generation's record and the next generation's rays (None when there are none)."""
-        kr = surfaces.get("reflectivity", slot, hit)
-        kt = surfaces.get("refractivity", slot, hit)
-        eta = surfaces.get("ior", slot, hit)
-        v = -ray.d
-        n = self.facing_normal(si, ray)
-        entering = dr.dot(si.n, ray.d) < 0
-        refracted_d, tir = refract(v, n, dr.select(entering, dr.rcp(eta), eta))
-        weight_r = kr + dr.select(tir, kt, 0.0)
-        weight_t = dr.select(tir, 0.0, kt)
-        has_r, has_t = hit & (weight_r > 0), hit & (weight_t > 0)
-        reflected = si.spawn_ray(reflect(v, n))
-        refracted = si.spawn_ray(refracted_d)
-        dr.eval(local, weight_r, weight_t, has_r, has_t, reflected, refracted)
+    def spawn(self, generation, step):
+        """Record the children of ``generation`` and return their rays (None: no children).
 
+        A lane has a reflected (refracted) child where its weight is > 0; the children
+        are compacted, reflected ones first, into the next generation's lanes."""
+        weight_r, weight_t = step.weight_r, step.weight_t
+        has_r, has_t = step.hit & (weight_r > 0), step.hit & (weight_t > 0)
+        dr.eval(generation.local, weight_r, weight_t, has_r, has_t, step.reflected, step.refracted)
         index_r, index_t = dr.compress(has_r), dr.compress(has_t)
         count_r, count_t = dr.width(index_r), dr.width(index_t)
-        child_r = dr.prefix_sum(mi.UInt32(has_r))  # exclusive: the rank among the lanes with a child
-        child_t = dr.prefix_sum(mi.UInt32(has_t)) + count_r
-        generation = Generation(local, weight_r, child_r, has_r, weight_t, child_t, has_t)
         if count_r + count_t == 0:
-            return generation, None
-
+            return None
+        generation.weight_r, generation.has_r = weight_r, has_r
+        generation.weight_t, generation.has_t = weight_t, has_t
+        generation.child_r = dr.prefix_sum(mi.UInt32(has_r))  # exclusive: rank among the lanes with a child
+        generation.child_t = dr.prefix_sum(mi.UInt32(has_t)) + count_r
         # dr.concat rejects an empty part (a scene with mirrors but no glass, or the reverse)
-        source = index_t if count_r == 0 else index_r if count_t == 0 else \
+        parent = index_t if count_r == 0 else index_r if count_t == 0 else \
             dr.concat([index_r, index_t])
         is_t = dr.arange(mi.UInt32, count_r + count_t) >= count_r
-        origin = dr.select(is_t, dr.gather(mi.Point3f, refracted.o, source),
-                           dr.gather(mi.Point3f, reflected.o, source))
-        direction = dr.select(is_t, dr.gather(mi.Vector3f, refracted.d, source),
-                              dr.gather(mi.Vector3f, reflected.d, source))
-        return generation, mi.Ray3f(origin, direction)
+        reflected, refracted = step.reflected, step.refracted
+        origin = dr.select(is_t, dr.gather(mi.Point3f, refracted.o, parent),
+                           dr.gather(mi.Point3f, reflected.o, parent))
+        direction = dr.select(is_t, dr.gather(mi.Vector3f, refracted.d, parent),
+                              dr.gather(mi.Vector3f, reflected.d, parent))
+        return mi.Ray3f(origin, direction)
