@@ -74,8 +74,8 @@ def find() -> str:
             raise LLVMError(f"{ENV}={explicit} {what}; {INSTALL_HINT}")
         return explicit
     for path in candidates():
-        if _version_from_name(path) and _version_from_name(path) < MIN_VERSION:
-            break  # sorted newest first: nothing usable after this
+        if 0 < _version_from_name(path) < MIN_VERSION:
+            continue  # too old by its name: not even loaded (names without a version come last)
         version = library_version(path)
         if version is not None and version[0] >= MIN_VERSION:
             return path
