@@ -1,3 +1,3 @@
-from raymitsuba.cli import main
+from raymitsuba.cli import run
 
-main()
+run()

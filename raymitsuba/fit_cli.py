@@ -118,7 +118,7 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srg
     if not os.path.isdir(os.path.dirname(os.path.abspath(output))):
         fail(f"{output}: the directory does not exist")
 
-    from raymitsuba import api
+    from raymitsuba import api, backend
     from raymitsuba._llvm import LLVMError
 
     height, width = target_image.shape[:2]
@@ -134,6 +134,7 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srg
         click.echo(line)
 
     try:
+        backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
         loaded = api.load(model, width=width, height=height, spp=spp, max_depth=max_depth,
                           srgb=srgb)
         result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, spp=spp,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import time
 
 import click
 
@@ -25,19 +26,29 @@ def fail(message: str, code: int = EXIT_FAILURE):
 
 class Progress:
     """A tqdm bar over the generations of the ray tree, shown only on a terminal and
-    only once a render has taken more than two seconds."""
+    only once a render has taken more than two seconds (tqdm is imported only then)."""
+
+    DELAY = 2.0  # seconds
 
     def __init__(self, total: int):
-        from tqdm import tqdm
-
-        self.bar = tqdm(total=total, desc="rendering", unit="gen", delay=2.0, leave=False,
-                        disable=not sys.stderr.isatty())
+        self.total = total
+        self.enabled = sys.stderr.isatty()
+        self.start = time.monotonic()
+        self.bar = None
 
     def __call__(self, done: int):
+        if self.bar is None:
+            if not self.enabled or time.monotonic() - self.start < self.DELAY:
+                return
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=self.total, desc="rendering", unit="gen", leave=False)
         self.bar.update(done - self.bar.n)
 
     def close(self):
-        self.bar.close()
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
 
 
 @click.command()
@@ -67,11 +78,12 @@ def render(scene, output, width, height, spp, max_depth, srgb):
         sys.exit(EXIT_SCENE_ERROR)
     report(model.warnings)
 
-    from raymitsuba import api
+    from raymitsuba import api, backend
     from raymitsuba._llvm import LLVMError
 
     progress = Progress(max_depth + 1)
     try:
+        backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
         loaded = api.load(model, width=width, height=height, spp=spp, max_depth=max_depth, srgb=srgb)
         loaded.integrator.progress = progress
         image = api.render(loaded).numpy()
