@@ -1,6 +1,6 @@
 """Parser throughput: time to parse generated scenes of 10^4, 10^5 and 10^6 lines.
 
-    .venv/bin/python benchmarks/parse_bench.py [--max-exponent 6]
+    .venv/bin/python benchmarks/parse_bench.py [--max-exponent 6] [--repeat 3]
 
 The scene mixes every kind of line (objects, transforms with matching pops,
 materials, lights, comments, blank lines). The parser is linear when the time
@@ -8,11 +8,17 @@ grows about tenfold per tenfold of lines, which the `ratio` column shows. The
 `x floor` column compares with the least any parser must do (split the text into
 lines and each line into tokens), which makes numbers from different machines
 comparable. Timings live here, never in the tests.
+
+Times are CPU seconds of this process (``time.process_time``; the parser is
+single-threaded, so on an idle machine they equal the wall-clock time), the
+median of ``--repeat`` runs: on a shared machine both choices make the figures
+much steadier than one wall-clock reading.
 """
 
 from __future__ import annotations
 
 import argparse
+import statistics
 import time
 
 from raymitsuba.parser import parse_text
@@ -46,26 +52,37 @@ def scene_text(lines: int) -> str:
     return BLOCK * (lines // BLOCK_LINES)
 
 
-def split_only(text: str) -> float:
-    """Seconds to split ``text`` into lines and tokens: the floor for any parser."""
-    start = time.perf_counter()
+def split_only(text: str) -> None:
+    """Split ``text`` into lines and tokens: the floor for any parser."""
     for line in text.split("\n"):
         line.split()
-    return time.perf_counter() - start
+
+
+def timed(function, argument, repeat: int):
+    """(median CPU seconds of ``repeat`` calls of ``function(argument)``, the last result).
+
+    A result is freed before the next clock starts: freeing is not parsing.
+    """
+    times, result = [], None
+    for _ in range(repeat):
+        result = None
+        start = time.process_time()
+        result = function(argument)
+        times.append(time.process_time() - start)
+    return statistics.median(times), result
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--max-exponent", type=int, default=6, help="largest power of ten of lines")
+    ap.add_argument("--repeat", type=int, default=3, help="runs per size; the median is shown")
     args = ap.parse_args()
     previous = None
     print(f"{'lines':>10} {'seconds':>9} {'lines/s':>11} {'ratio':>6} {'x floor':>8}")
     for exponent in range(4, args.max_exponent + 1):
         text = scene_text(10 ** exponent)
-        start = time.perf_counter()
-        scene = parse_text(text)
-        seconds = time.perf_counter() - start
-        floor = split_only(text)
+        seconds, scene = timed(parse_text, text, args.repeat)
+        floor, _ = timed(split_only, text, args.repeat)
         ratio = f"{seconds / previous:6.1f}" if previous else "     -"
         print(f"{10 ** exponent:>10} {seconds:9.3f} {10 ** exponent / seconds:11.0f} {ratio}"
               f" {seconds / floor:8.1f}   ({len(scene.objects)} objects)")

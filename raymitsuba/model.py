@@ -6,11 +6,14 @@ the single source of truth for every decision the format leaves to it
 object carries). Later stages -- the translator, the checker's summary, the
 fitting tools -- read this model and never look at the .RAY text again.
 
+Every class is a frozen dataclass with ``__slots__``: immutable, compared and
+hashed by value, and small (a large scene holds hundreds of thousands of them).
+
 Conventions, decided here once:
 
 * All vectors are tuples of Python floats. Points and directions of lights
   and of the camera are in **world space**; they are never transformed.
-* ``Object.to_world`` is the 4x4 object-to-world matrix, **row-major**, acting
+* ``SceneObject.to_world`` is the 4x4 object-to-world matrix, **row-major**, acting
   on column vectors: ``p_world = M @ (x, y, z, 1)``. With transforms
   T1 ... Tn on the stack (T1 the oldest) it is ``Tn @ ... @ T2 @ T1``
   ("earlier stack statements are applied first").
@@ -45,7 +48,7 @@ class Severity(str, enum.Enum):
     WARNING = "warning"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Diagnostic:
     """One problem found in the input, located at FILE:LINE:COLUMN (1-based)."""
 
@@ -81,7 +84,7 @@ class RayError(Exception):
         return tuple(d for d in self.diagnostics if d.severity is Severity.ERROR)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Camera:
     eye: Vec3 = (0.0, 0.0, 5.0)
     lookat: Vec3 = (0.0, 0.0, 0.0)
@@ -90,7 +93,7 @@ class Camera:
     line: Optional[int] = None  # line of the last camera command, None if all defaults
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Material:
     """``material r g b ka kd ks n kr kt eta``; see the format reference."""
 
@@ -116,7 +119,7 @@ class LightKind(str, enum.Enum):
     SPOT = "spotlight"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Light:
     kind: LightKind
     color: Vec3
@@ -135,7 +138,7 @@ class ObjectKind(str, enum.Enum):
     TRIANGLE = "triangle"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Texture:
     """An image texture named by a `texture` line, checked readable at parse time."""
 
@@ -143,7 +146,7 @@ class Texture:
     format: str  # detected from the file's contents: "exr", "png", "jpeg", "hdr", "pfm", "ppm", "bmp", "tga"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class SceneObject:
     kind: ObjectKind
     to_world: Matrix4
@@ -154,7 +157,7 @@ class SceneObject:
     vertices: Optional[Tuple[Vec3, Vec3, Vec3]] = None  # triangle corners, object space
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Scene:
     file: str  # the name used in diagnostics ("<string>" for text)
     camera: Camera = field(default_factory=Camera)

@@ -23,21 +23,23 @@ Conventions, decided once:
   character; one about a missing operand points just past the end of the
   line's last token (comments excluded).
 * The transform stack is kept as a list of *composites*: ``stack[k]`` is the
-  object-to-world matrix ``Tk+1 @ ... @ T1`` of the first k+1 transforms, so
-  a push is one matrix product, a pop is a list pop, and an object simply
-  takes ``stack[-1]`` (see :mod:`raymitsuba.model` for the matrix layout).
+  object-to-world matrix ``Tk @ ... @ T1`` of the first k transforms
+  (``stack[0]`` is the identity and is never popped), so a push is one matrix
+  product, a pop is a list pop, and an object simply takes ``stack[-1]`` (see
+  :mod:`raymitsuba.model` for the matrix layout).
 """
 
 from __future__ import annotations
 
 import contextlib
 import difflib
+import functools
 import gc
 import math
 import os
 import re
 import stat
-from typing import Dict, List, Optional, Sequence, Tuple, Union
+from typing import Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 from raymitsuba.model import (IDENTITY, Camera, Diagnostic, Light, LightKind, Material,
                               Matrix4, ObjectKind, RayError, Scene, SceneObject, Severity,
@@ -78,6 +80,7 @@ _LIGHT_OPERANDS: Dict[LightKind, Tuple[str, ...]] = {
     LightKind.SPOT: ("x", "y", "z", "x'", "y'", "z'", "s"),
 }
 _LIGHT_KINDS = {kind.value: kind for kind in LightKind}
+_LIGHT_WHAT = {kind: f"`light ... {kind.value}`" for kind in LightKind}  # as named in messages
 _LIGHT_KIND_LIST = "ambient, point, directional or spotlight"
 
 _OBJECT_KINDS = {kind.value: kind for kind in ObjectKind}
@@ -260,10 +263,14 @@ def _tokens(line: str) -> List[str]:
     # For ASCII text without control characters str.split() splits on exactly
     # spaces and tabs; otherwise Unicode spaces must stay inside tokens.
     toks = line.split() if line.isascii() else [t for t in line.replace("\t", " ").split(" ") if t]
-    if "#" in line:
-        for i, tok in enumerate(toks):
-            if tok[0] == "#":
-                return toks[:i]
+    return _before_comment(toks) if "#" in line else toks
+
+
+def _before_comment(toks: List[str]) -> List[str]:
+    """``toks`` up to the first token that starts with ``#`` (a comment), if any."""
+    for i, tok in enumerate(toks):
+        if tok[0] == "#":
+            return toks[:i]
     return toks
 
 
@@ -299,6 +306,7 @@ def _scaled(m: Matrix4, x: float, y: float, z: float) -> Matrix4:
 _QUARTER_TURNS = ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))  # (cos, sin) of k * 90
 
 
+@functools.lru_cache(maxsize=256)  # scenes repeat their angles
 def _cos_sin_degrees(theta: float) -> Tuple[float, float]:
     """cos and sin of ``theta`` degrees; exact for whole multiples of 90 degrees."""
     theta = math.fmod(theta, 360.0)
@@ -328,19 +336,20 @@ def _mix(a: float, u: Tuple[float, ...], b: float, v: Tuple[float, ...]) -> Tupl
     return (a * u[0] + b * v[0], a * u[1] + b * v[1], a * u[2] + b * v[2], a * u[3] + b * v[3])
 
 
-def _is_usable_transform(m: Matrix4) -> bool:
-    """Finite entries and an invertible (finite, non-zero determinant) linear part."""
-    r0, r1, r2 = m[0], m[1], m[2]
-    total = sum(r0) + sum(r1) + sum(r2)
-    if total - total != 0.0 and not all(map(math.isfinite, r0 + r1 + r2)):
-        return False  # (a finite sum proves all entries finite; an infinite one may lie)
-    (a, b, c, _), (d, e, f, _), (g, h, i, _) = r0, r1, r2
+def _magnitude_if_usable(m: Matrix4) -> Optional[float]:
+    """The largest |entry| of ``m`` if it is usable, else None.
+
+    Usable: finite entries and an invertible (finite, non-zero determinant) linear part.
+    """
+    entries = m[0] + m[1] + m[2]
+    total = sum(entries)
+    if total - total != 0.0 and not all(map(math.isfinite, entries)):
+        return None  # (a finite sum proves all entries finite; an infinite one may lie)
+    (a, b, c, _), (d, e, f, _), (g, h, i, _) = m[0], m[1], m[2]
     det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
-    return det != 0.0 and math.isfinite(det)
-
-
-def _max_magnitude(m: Matrix4) -> float:
-    return max(map(abs, m[0] + m[1] + m[2]))
+    if det == 0.0 or not math.isfinite(det):
+        return None
+    return max(map(abs, entries))
 
 
 def _apply(m: Matrix4, p: Vec3) -> Vec3:
@@ -385,8 +394,9 @@ class _Parser:
         self.diagnostics: List[Diagnostic] = []
         self.n_errors = 0
         # camera: value and (line, column of the command) of each camera command given
-        self.camera = {"eye": Camera.eye, "lookat": Camera.lookat, "up": Camera.up,
-                       "fov": Camera.fov}
+        default = Camera()
+        self.camera = {"eye": default.eye, "lookat": default.lookat, "up": default.up,
+                       "fov": default.fov}
         self.camera_at: Dict[str, Tuple[int, int, str]] = {}
         self.background: Vec3 = (0.0, 0.0, 0.0)
         self.background_line: Optional[int] = None
@@ -394,8 +404,8 @@ class _Parser:
         self.texture: Optional[Texture] = None
         self.texture_cache: Dict[str, Union[Texture, Tuple[str, ...]]] = {}
         self.checker: Optional[float] = None
-        self.stack: List[Matrix4] = []  # composites, see the module docstring
-        self.stack_magnitude: List[float] = []  # largest |entry| of each composite
+        self.stack: List[Matrix4] = [IDENTITY]  # composites, see the module docstring
+        self.stack_magnitude: List[float] = [1.0]  # largest |entry| of each composite
         self.objects: List[SceneObject] = []
         self.lights: List[Light] = []
         self.first_object_at = (0, "")  # (line, text) of the first object, for a warning
@@ -432,7 +442,7 @@ class _Parser:
             if not toks:
                 continue
             if "#" in line:
-                toks = _tokens(line)
+                toks = _before_comment(toks)
                 if not toks:
                     continue
             self._ln, self._line, self._toks = ln, line, toks
@@ -444,27 +454,23 @@ class _Parser:
                 handler()
         return self._finish()
 
-    def _decoded_lines(self, data: Union[str, bytes]):
+    def _decoded_lines(self, data: Union[str, bytes]) -> Iterator[Tuple[int, str]]:
         """(line number, text) of every line that may be parsed; reports bad characters."""
         if isinstance(data, (bytes, bytearray, memoryview)):
             data = bytes(data)
             try:
                 text = data.decode("utf-8")
             except UnicodeDecodeError:
-                yield from self._decode_line_by_line(data)
-                return
+                return self._decode_line_by_line(data)
         else:
             text = data
         if text.startswith("\ufeff"):  # a UTF-8 byte order mark is not content
             text = text[1:]
         lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
         if _FORBIDDEN.search(text) is None:
-            yield from enumerate(lines, 1)
-            return
-        for ln, line in enumerate(lines, 1):
-            if self._line_has_bad_character(ln, line):
-                continue
-            yield ln, line
+            return enumerate(lines, 1)  # the common case: a plain iterator, no generator
+        return ((ln, line) for ln, line in enumerate(lines, 1)
+                if not self._line_has_bad_character(ln, line))
 
     def _decode_line_by_line(self, data: bytes):
         for ln, raw in enumerate(_split_lines(data), 1):
@@ -653,16 +659,14 @@ class _Parser:
 
     # ---- objects -----------------------------------------------------------------
 
-    def _current(self) -> Matrix4:
-        return self.stack[-1] if self.stack else IDENTITY
-
     def _add(self, kind: ObjectKind, vertices=None) -> None:
         if not self.objects:
             self.first_object_at = (self._ln, self._line)
-        self.objects.append(SceneObject(
-            kind=kind, to_world=self.stack[-1] if self.stack else IDENTITY,
-            material=len(self.materials) - 1, line=self._ln, texture=self.texture,
-            checker=self.checker if kind is ObjectKind.PLANE else None, vertices=vertices))
+        material = len(self.materials) - 1
+        checker = self.checker if kind is ObjectKind.PLANE else None
+        # Positional: this runs once per object, and keyword arguments cost a third more.
+        self.objects.append(SceneObject(kind, self.stack[-1], material, self._ln, self.texture,
+                                        checker, vertices))
 
     def _primitive(self) -> None:
         if len(self._toks) != 1:
@@ -680,7 +684,9 @@ class _Parser:
         if n[0] == 0.0 and n[1] == 0.0 and n[2] == 0.0:
             self._warning(self._column(0), "zero-area triangle: its corners are collinear "
                                            "(it will not be visible)")
-        if self.stack and max(map(abs, values)) * self.stack_magnitude[-1] > _SAFE_MAGNITUDE ** 2:
+        # Only a transform (not the identity at the bottom) can carry corners out of range.
+        if (len(self.stack) > 1
+                and max(map(abs, values)) * self.stack_magnitude[-1] > _SAFE_MAGNITUDE ** 2):
             corners = [_apply(self.stack[-1], p) for p in (p0, p1, p2)]  # type: ignore[arg-type]
             if not all(math.isfinite(c) for p in corners for c in p):
                 self._error(self._column(0), "the current transform carries this triangle "
@@ -714,7 +720,7 @@ class _Parser:
             self._error(self._column(4), f"unknown light kind `{toks[4]}`{hint}")
             return
         names = _LIGHT_OPERANDS[kind]
-        what = f"`light ... {kind.value}`"
+        what = _LIGHT_WHAT[kind]
         if not self._count_ok(names, start=5, what=what):
             return
         values = self._floats(names, start=5, what=what)
@@ -746,43 +752,43 @@ class _Parser:
     def _push(self, composite: Optional[Matrix4]) -> None:
         """Push the new ``composite`` (``T @ current``). None, after an error in the line,
         pushes a no-op so that later `pop` lines still match their pushes."""
-        current = self.stack[-1] if self.stack else IDENTITY
-        if composite is None:
-            composite = current
-        elif not _is_usable_transform(composite):
-            self._error(self._column(0), f"`{self._cmd}` makes the transform overflow or "
-                                         f"become singular in floating point")
-            composite = current
+        magnitude = None if composite is None else _magnitude_if_usable(composite)
+        if magnitude is None:
+            if composite is not None:
+                self._error(self._column(0), f"`{self._cmd}` makes the transform overflow or "
+                                             f"become singular in floating point")
+            composite, magnitude = self.stack[-1], self.stack_magnitude[-1]
         self.stack.append(composite)
-        self.stack_magnitude.append(_max_magnitude(composite))
+        self.stack_magnitude.append(magnitude)
 
     def _translate(self) -> None:
         values = self._operands()
-        self._push(None if values is None else _translated(self._current(), *values))
+        self._push(None if values is None else _translated(self.stack[-1], *values))
 
     def _scale(self) -> None:
         values = self._operands()
-        if values is not None:
+        if values is not None and 0.0 in values:
             for i, v in enumerate(values):
                 if v == 0.0:
                     self._error(self._column(1 + i), f"`scale` factor `{_XYZ[i]}` is zero; "
                                                      f"a scale must be invertible")
-                    values = None
-        self._push(None if values is None else _scaled(self._current(), *values))
+            values = None
+        self._push(None if values is None else _scaled(self.stack[-1], *values))
 
     def _rotate(self) -> None:
         values = self._operands()
         axis = self._cmd[-1].lower()
-        self._push(None if values is None else _rotated(self._current(), axis, values[0]))
+        self._push(None if values is None else _rotated(self.stack[-1], axis, values[0]))
 
     def _reset(self) -> None:
-        self._count_ok(())
-        self.stack.clear()
-        self.stack_magnitude.clear()
+        if len(self._toks) != 1:
+            self._count_ok(())
+        del self.stack[1:], self.stack_magnitude[1:]
 
     def _pop(self) -> None:
-        self._count_ok(())
-        if not self.stack:
+        if len(self._toks) != 1:
+            self._count_ok(())
+        if len(self.stack) == 1:
             self._error(self._column(0), "`pop` on an empty transform stack "
                                          "(nothing has been pushed since the start or `reset`)")
             return
