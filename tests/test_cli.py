@@ -1,8 +1,8 @@
-"""Tests of ``raymitsuba check`` (raymitsuba/cli.py) and its summary (raymitsuba/summary.py)."""
+"""Tests of the ``raymitsuba`` command line (raymitsuba/cli.py): the group, the ``check``
+command and ``python -m raymitsuba``. What the summary says is tested in test_summary.py."""
 
 from __future__ import annotations
 
-import math
 import subprocess
 import sys
 
@@ -10,8 +10,6 @@ import pytest
 from click.testing import CliRunner
 
 from raymitsuba.cli import main
-from raymitsuba.parser import parse_text
-from raymitsuba.summary import object_bounds, scene_bounds, summarize
 
 VALID = """\
 # two spheres, a cone and a floor
@@ -47,6 +45,16 @@ def invalid(tmp_path):
     path = tmp_path / "invalid.ray"
     path.write_text("sphere 1\nrotatey2 3\nlight 1 1 1 ambient\n")
     return path
+
+
+def test_every_command_has_help():
+    result = run("--help")
+    assert result.exit_code == 0
+    assert [line.split()[0] for line in result.stdout.split("Commands:")[1].strip().splitlines()] \
+        == ["check", "fit", "render"]
+    for command in ("check", "fit", "render"):
+        for flag in ("--help", "-h"):
+            assert run(command, flag).exit_code == 0
 
 
 class TestCheck:
@@ -116,6 +124,19 @@ class TestCheck:
         assert result.exit_code == 0
         assert "Validate .RAY SCENES" in result.stdout and "Exit status 0" in result.stdout
 
+    def test_loads_neither_mitsuba_nor_drjit(self, valid):
+        code = ("import sys\n"
+                "from raymitsuba.cli import main\n"
+                "try:\n"
+                "    main(['check', sys.argv[1]])\n"
+                "except SystemExit as e:\n"
+                "    assert e.code == 0, e.code\n"
+                "print(sorted(m for m in sys.modules if m.split('.')[0] in ('mitsuba', 'drjit')))\n")
+        result = subprocess.run([sys.executable, "-c", code, str(valid)], capture_output=True,
+                                text=True, timeout=120)
+        assert result.returncode == 0, result.stderr
+        assert result.stdout.splitlines()[-1] == "[]"
+
     def test_python_dash_m(self, valid, invalid):
         ok = subprocess.run([sys.executable, "-m", "raymitsuba", "check", str(valid)],
                             capture_output=True, text=True, timeout=120)
@@ -125,52 +146,3 @@ class TestCheck:
                              capture_output=True, timeout=120)
         assert bad.returncode == 2 and b"Traceback" not in bad.stderr
         assert b"rotatey2" in bad.stderr
-
-
-class TestBounds:
-    def bounds(self, text):
-        return scene_bounds(parse_text(text + "\nlight 1 1 1 ambient\n"))
-
-    def test_sphere_translated_and_scaled(self):
-        assert self.bounds("translate 2 0 0\nscale 2 2 2\nsphere") == ((2, -2, -2), (6, 2, 2))
-
-    def test_ellipsoid_is_exact_under_rotation(self):
-        lo, hi = self.bounds("scale 3 1 1\nrotateZ 45\nsphere")
-        # the x half-extent of M = Rz(45) S(3,1,1) is the norm of row 0: sqrt(4.5 + 0.5)
-        assert math.isclose(hi[0], math.sqrt(5)) and math.isclose(lo[1], -math.sqrt(5))
-        assert hi[2] == 1 and lo[2] == -1
-
-    def test_cylinder(self):
-        assert self.bounds("cylinder") == ((-1, -0.5, -1), (1, 0.5, 1))
-        lo, hi = self.bounds("rotateX 90\ncylinder")  # axis along z
-        assert (lo, hi) == ((-1, -1, -0.5), (1, 1, 0.5))
-
-    def test_tilted_cylinder_is_exact(self):
-        lo, hi = self.bounds("rotateZ 30\ncylinder")
-        c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
-        # x: half the axis (0.5 * |-s|) plus the disk radius projected (|c|)
-        assert math.isclose(hi[0], 0.5 * s + c) and math.isclose(hi[1], 0.5 * c + s)
-
-    def test_cone(self):
-        assert self.bounds("cone") == ((-1, -0.5, -1), (1, 0.5, 1))
-        assert self.bounds("rotateZ 90\ncone") == ((-0.5, -1, -1), (0.5, 1, 1))
-        assert self.bounds("scale 1 4 1\ncone") == ((-1, -2, -1), (1, 2, 1))
-
-    def test_cone_apex_sticking_out_sideways(self):
-        # a tall cone turned to lie along +x: the apex at x = 2 bounds it on the right
-        lo, hi = self.bounds("scale 1 4 1\nrotateZ -90\ncone")
-        assert (lo, hi) == ((-2, -1, -1), (2, 1, 1))
-
-    def test_triangle_uses_its_transformed_corners(self):
-        assert self.bounds("translate 0 0 1\ntriangle 0 0 0 2 0 0 0 3 0") == ((0, 0, 1), (2, 3, 1))
-
-    def test_plane_has_no_box(self):
-        scene = parse_text("plane\nlight 1 1 1 ambient")
-        assert object_bounds(scene.objects[0]) is None and scene_bounds(scene) is None
-
-    def test_union(self):
-        assert self.bounds("sphere\ntranslate 10 0 0\nsphere\nplane") == ((-1, -1, -1), (11, 1, 1))
-
-    def test_summarize_starts_with_the_file(self):
-        text = summarize(parse_text("sphere\nlight 1 1 1 ambient", file="x.ray"))
-        assert text.splitlines()[0] == "x.ray: ok"
