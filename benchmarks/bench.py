@@ -20,8 +20,9 @@ reflection + refraction tree) and each sample count it measures:
 * POV-Ray: wall time of ``povray`` on an export of the same scene, when installed;
 
 and for gradients: one step (primal + reverse-mode backpropagation of an L2
-loss to all material parameters) at 256x256 / 8 spp and 1024x768 / 1 spp, as a
-ratio to the primal render at the same settings.
+loss, to all material parameters and to the Phong terms only) at 256x256 / 8 spp
+and 1024x768 / 1 spp, as a ratio to the primal render at the same settings, and
+the peak memory of each (separate processes).
 
 Timings on shared machines are noisy: medians of several runs, and ratios of
 figures taken in the same run, are what to compare.
@@ -108,14 +109,22 @@ def native_direct(path, width, height, spp, repeats):
     return times
 
 
-def gradient_step(path, width, height, spp, repeats):
-    """(primal times, primal + reverse times) for an L2 loss against a perturbed render."""
+PHONG_FIELDS = ("color", "diffuse_mix", "specular_mix", "phong_coeff")
+
+
+def gradient_step(path, width, height, spp, repeats, mode, fields=None):
+    """Times of ``mode`` ("primal" render, or "step": primal + reverse-mode gradient of an
+    L2 loss to the material parameters named by ``fields``, all when None), and this
+    process's peak resident memory (MB)."""
+    import resource
+
     import drjit as dr
     import raymitsuba
 
     loaded = raymitsuba.load(path, width=width, height=height, spp=spp)
     params = loaded.params
-    keys = [k for k in params.keys() if k.startswith("mat")]  # every material parameter
+    keys = [k for k in params.keys()
+            if k.startswith("mat") and (fields is None or k.split(".", 1)[1] in fields)]
     target = raymitsuba.render(loaded)
     dr.eval(target)
 
@@ -134,16 +143,14 @@ def gradient_step(path, width, height, spp, repeats):
             dr.disable_grad(params[key])
         params.update()
 
-    out = {}
-    for name, fn in (("primal", primal), ("step", step)):
+    fn = step if mode == "step" else primal
+    fn()
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
         fn()
-        times = []
-        for _ in range(repeats):
-            t = time.perf_counter()
-            fn()
-            times.append(time.perf_counter() - t)
-        out[name] = times
-    return out
+        times.append(time.perf_counter() - t)
+    return {"times": times, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
 # -- measurements of whole processes ----------------------------------------------------------
@@ -234,12 +241,17 @@ def main():
         glass = [r for r in rows if r["spp"] == spp and r["scene"] == SCENES[1]][0]
         print(f"glass / reflective warm render at {spp} spp: {glass['warm'] / refl['warm']:.2f}")
 
-    print("\ngradient step (primal + reverse) vs primal:")
+    print("\ngradient step (primal + reverse-mode gradient of an L2 loss) vs primal, on "
+          f"{SCENES[1]}; each figure from its own process (time median, peak memory):")
     for (gw, gh, gspp) in ((256, 256, 8), (w, h, 1)):
-        g = child({"what": "grad", "path": scene_path(SCENES[1]), "width": gw, "height": gh,
-                   "spp": gspp, "repeats": repeats})
-        print(f"  {SCENES[1]} {gw}x{gh} {gspp} spp: primal {median(g['primal']):.3f} s, "
-              f"step {median(g['step']):.3f} s, ratio {median(g['step']) / median(g['primal']):.2f}")
+        common = {"what": "grad", "path": scene_path(SCENES[1]), "width": gw, "height": gh,
+                  "spp": gspp, "repeats": repeats}
+        primal = child({**common, "mode": "primal"})
+        for label, fields in (("all material parameters", None), ("Phong terms only", PHONG_FIELDS)):
+            step = child({**common, "mode": "step", "fields": fields})
+            print(f"  {gw}x{gh} {gspp} spp, {label:23}: primal {median(primal['times']):.3f} s "
+                  f"({primal['peak_mb']:.0f} MB), step {median(step['times']):.3f} s "
+                  f"({step['peak_mb']:.0f} MB), ratio {median(step['times']) / median(primal['times']):.2f}")
     shutil.rmtree(work, ignore_errors=True)
 
 
