@@ -40,8 +40,10 @@ the loss but need not recover each one; pick ``keys`` accordingly.
 **Writing back** (:func:`rewrite_scene`): the .RAY text with only the fitted
 numbers replaced, every other byte unchanged (comments, spacing, line ends).
 The operands are found from the parser's line numbers (``Material.line``,
-``Light.line``) by re-tokenizing that one line; a number whose value did not
-change keeps its original spelling, a changed one is written as ``f"{x:.6g}"``.
+``Light.line``) and its own lexical rules (:data:`raymitsuba.parser.LINE_END`,
+:func:`raymitsuba.parser.token_spans`) applied to that one line; a number whose
+value did not change keeps its original spelling, a changed one is written as
+``f"{x:.6g}"``.
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from raymitsuba.model import LightKind, Material, Scene
+from raymitsuba.parser import LINE_END, token_spans
 
 Value = Union[float, Tuple[float, ...]]
 
@@ -83,8 +86,7 @@ _LIGHT_TOKENS = {
     ("direction", LightKind.SPOT): (8, 9, 10),
     ("shape_coefficient", LightKind.SPOT): (11,),
 }
-_TOKEN = re.compile(r"[^ \t]+")  # the parser's tokens: runs of anything but space and tab
-_LINE_END = re.compile(r"(\r\n|\r|\n)")  # the parser's line ends
+_LINE_END_KEPT = re.compile(f"({LINE_END.pattern})")  # re.split keeps the line ends
 
 
 class FitError(ValueError):
@@ -354,7 +356,7 @@ def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value
     the renderer) keeps its original spelling."""
     is_bytes = isinstance(data, (bytes, bytearray))
     text = bytes(data).decode("utf-8", "surrogateescape") if is_bytes else data
-    parts = _LINE_END.split(text)  # line, end, line, end, ..., line
+    parts = _LINE_END_KEPT.split(text)  # line, end, line, end, ..., line
     edits: Dict[int, Dict[int, str]] = {}
     for key, value in values.items():
         line, tokens = token_indices(model, key)
@@ -370,10 +372,10 @@ def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value
         if index >= len(parts):
             raise FitError(f"line {line} is not in the scene text")
         source = parts[index]
-        spans = [m.span() for m in _TOKEN.finditer(source)]
+        spans = token_spans(source)
         out, last = [], 0
         for token in sorted(changes):
-            if token >= len(spans) or spans[token][0] >= _comment_start(source, spans):
+            if token >= len(spans):
                 raise FitError(f"line {line} does not have operand {token}: {source!r}")
             begin, end = spans[token]
             original = source[begin:end]
@@ -386,14 +388,6 @@ def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value
         parts[index] = "".join(out)
     result = "".join(parts)
     return result.encode("utf-8", "surrogateescape") if is_bytes else result
-
-
-def _comment_start(source: str, spans) -> int:
-    """Offset of the first token starting with '#' (a trailing comment), else len(source)."""
-    for begin, _ in spans:
-        if source[begin] == "#":
-            return begin
-    return len(source)
 
 
 def _same_float32(token: str, value: float) -> bool:

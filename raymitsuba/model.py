@@ -4,7 +4,9 @@ The parser (:mod:`raymitsuba.parser`) is the only producer of these values and
 the single source of truth for every decision the format leaves to it
 (defaults, the transform-stack order, which texture and checker state an
 object carries). Later stages -- the translator, the checker's summary, the
-fitting tools -- read this model and never look at the .RAY text again.
+fitting tools -- read this model and never parse the .RAY text again (writing
+fitted numbers back edits the lines the model names, with the parser's own
+lexical rules).
 
 Every class is a frozen dataclass with ``__slots__``: immutable, compared and
 hashed by value, and small (a large scene holds hundreds of thousands of them).

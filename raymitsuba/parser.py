@@ -4,7 +4,9 @@ Public entry points:
 
 * :func:`parse_file` -- read a .RAY file;
 * :func:`parse_text` -- parse a string (or bytes) already in memory;
-* :func:`parse` -- either of the two, guessed from the argument.
+* :func:`parse` -- either of the two, guessed from the argument;
+* :data:`LINE_END` and :func:`token_spans` -- the lexical rules, for tools that edit
+  .RAY text in place (``raymitsuba.fit`` writes fitted numbers back with them).
 
 Every rule of the format is decided here and written down in ``docs/format.md``;
 this module implements that page and nothing else. The contract with callers:
@@ -45,7 +47,8 @@ from raymitsuba.model import (IDENTITY, Camera, Diagnostic, Light, LightKind, Ma
                               Matrix4, ObjectKind, RayError, Scene, SceneObject, Severity,
                               Texture, Vec3)
 
-__all__ = ["parse", "parse_file", "parse_text", "COMMANDS", "OPERANDS", "TEXTURE_FORMATS"]
+__all__ = ["parse", "parse_file", "parse_text", "token_spans", "COMMANDS", "LINE_END",
+           "OPERANDS", "TEXTURE_FORMATS"]
 
 PathOrText = Union[str, bytes, "os.PathLike[str]"]
 
@@ -107,6 +110,8 @@ _TGA_IMAGE_TYPES = frozenset({1, 2, 3, 9, 10, 11})
 #: (which only a Python ``str`` can carry; they are not Unicode text).
 _FORBIDDEN = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f\ud800-\udfff]")
 _TOKEN = re.compile(r"[^ \t]+")
+#: What ends a line. (The parser itself splits with str.replace, which is faster.)
+LINE_END = re.compile(r"\r\n|\r|\n")
 
 #: A parallel test threshold for unit vectors: |u x d| below this counts as parallel.
 _PARALLEL_EPS = 1e-12
@@ -277,6 +282,12 @@ def _before_comment(toks: List[str]) -> List[str]:
 def _spans(line: str) -> List[Tuple[int, int]]:
     """0-based [start, end) character spans of the tokens of ``line``, as :func:`_tokens`."""
     return [m.span() for m in _TOKEN.finditer(line)]
+
+
+def token_spans(line: str) -> List[Tuple[int, int]]:
+    """0-based [start, end) character spans of the tokens of one line (without its line end)
+    before any trailing comment, as the parser reads them: the command, then its operands."""
+    return _spans(line)[:len(_tokens(line))]
 
 
 # --------------------------------------------------------------------------------------

@@ -15,7 +15,7 @@ import pytest
 
 from raymitsuba.model import (IDENTITY, Camera, LightKind, Material, ObjectKind, RayError,
                               Scene, Severity, Texture)
-from raymitsuba.parser import COMMANDS, parse, parse_file, parse_text
+from raymitsuba.parser import COMMANDS, LINE_END, parse, parse_file, parse_text, token_spans
 
 LIT = "light 1 1 1 ambient\n"  # appended where a test does not want the "no light" warning
 
@@ -551,6 +551,22 @@ class TestLexical:
             parse_file(path)
         (d,) = info.value.errors
         assert (d.line, d.column) == (1, 8) and d.file == str(path)
+
+    # The same rules, exported for tools that edit .RAY text in place (raymitsuba.fit).
+
+    def test_token_spans_are_the_command_and_operands_before_a_comment(self):
+        line = "material\t1 2  3 # 4 5"
+        assert [line[a:b] for a, b in token_spans(line)] == ["material", "1", "2", "3"]
+        assert token_spans("   # only a comment") == [] and token_spans("") == []
+        assert token_spans("a#b c") == [(0, 3), (4, 5)]  # a # inside a token is not a comment
+
+    def test_token_spans_keep_unicode_spaces_inside_tokens(self):
+        line = "texture my\u00a0file.png"
+        assert [line[a:b] for a, b in token_spans(line)] == ["texture", "my\u00a0file.png"]
+
+    def test_line_end_is_cr_lf_cr_or_lf_and_nothing_else(self):
+        text = "a\r\nb\rc\nd\x0be\x0cf\u2028g"
+        assert LINE_END.split(text) == ["a", "b", "c", "d\x0be\x0cf\u2028g"]
 
 
 # ---- errors ----------------------------------------------------------------------------
