@@ -50,15 +50,14 @@ from __future__ import annotations
 
 import fnmatch
 import math
-import os
 import re
-import tempfile
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from raymitsuba.atomic import atomic_path
 from raymitsuba.model import LightKind, Material, Scene
 from raymitsuba.parser import LINE_END, token_spans
 
@@ -401,16 +400,5 @@ def write_scene(path: str, data: Union[bytes, str]) -> None:
     """Write ``data`` to ``path`` atomically (a temporary file renamed over it)."""
     if isinstance(data, str):
         data = data.encode("utf-8", "surrogateescape")
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".raymitsuba-", suffix=".ray", dir=directory)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path, ".ray") as tmp, open(tmp, "wb") as f:
+        f.write(data)

@@ -12,6 +12,7 @@ import sys
 import click
 
 from raymitsuba import images
+from raymitsuba.atomic import atomic_path
 from raymitsuba.model import RayError
 
 EXIT_USAGE = 2  # scene errors, bad options, unreadable target: like click's own usage errors
@@ -168,8 +169,6 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srg
 
 def write_plot(path: str, target, result, srgb: bool) -> None:
     """Loss curve (log scale) and the target / start / fitted images side by side, atomically."""
-    import tempfile
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -194,18 +193,8 @@ def write_plot(path: str, target, result, srgb: bool) -> None:
         ax.set_axis_off()
     fig.tight_layout()
     ext = os.path.splitext(path)[1].lower()
-    fd, tmp = tempfile.mkstemp(prefix=".raymitsuba-", suffix=ext,
-                               dir=os.path.dirname(os.path.abspath(path)))
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=100, format=ext[1:])
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual mode
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+        with atomic_path(path, ext) as tmp:
+            fig.savefig(tmp, dpi=100, format=ext[1:])
     finally:
         plt.close(fig)
