@@ -22,8 +22,6 @@ they do not disturb the derivatives.
 from __future__ import annotations
 
 import argparse
-import os
-import sys
 import time
 
 TRUE_SCENE = """\
@@ -60,22 +58,15 @@ def main(argv=None):
     parser.add_argument("--quiet", action="store_true", help="no per-iteration progress")
     args = parser.parse_args(argv)
 
-    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
     import raymitsuba
-    from raymitsuba.backend import mitsuba
-    from raymitsuba.fit import fit, model_values, typed
+    from raymitsuba.fit import fit, model_values, set_values
 
-    mitsuba()
     truth = raymitsuba.load(TRUE_SCENE, width=args.size, height=args.size)
     target = raymitsuba.render(truth).numpy()
     true_values = model_values(truth.model, KEYS)
 
     loaded = raymitsuba.load(TRUE_SCENE, width=args.size, height=args.size)
-    import mitsuba as mi
-
-    for key, value in START.items():  # the perturbed start
-        loaded.params[key] = typed(mi, loaded.params[key], value)
-    loaded.params.update()
+    set_values(loaded, START)  # the perturbed start
 
     def progress(step):
         if not args.quiet and (step.iteration % 100 == 0 or step.iteration == 1):

@@ -326,6 +326,17 @@ def typed(mi, like, value: Value):
     return mi.Float(value)
 
 
+def set_values(loaded, values: Dict[str, Value]) -> None:
+    """Set parameters of ``loaded`` from Python values (floats; tuples for colors, points and
+    directions), as :func:`to_python` gives them and ``FitResult.fitted`` holds them."""
+    from raymitsuba.backend import mitsuba
+
+    mi = mitsuba()
+    for key, value in values.items():
+        loaded.params[key] = typed(mi, loaded.params[key], value)
+    loaded.params.update()
+
+
 # -- writing back ---------------------------------------------------------------------------------
 def _format(x: float) -> str:
     text = f"{x:.6g}"

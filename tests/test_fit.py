@@ -201,6 +201,15 @@ class TestFit:
         assert result.fitted["mat1.diffuse_mix"] == 0.0
         assert result.fitted["mat1.refractivity"] == pytest.approx(1e-4)  # not 0: see fit.py
 
+    def test_set_values_takes_what_to_python_gives(self, mi):
+        import raymitsuba
+
+        loaded = raymitsuba.load(TRUE, width=8, height=8)
+        values = {"mat1.color": (0.25, 0.5, 0.75), "mat1.phong_coeff": 7.0,
+                  "light1.position": (1.0, 2.0, 3.0)}
+        F.set_values(loaded, values)
+        assert {key: F.to_python(loaded.params[key]) for key in values} == values
+
     def test_clamp_value(self):
         assert F.clamp_value("mat1.color", (-1.0, 0.5, 2.0)) == (0.0, 0.5, 2.0)
         assert F.clamp_value("mat2.ior", -3.0) == 1e-3
