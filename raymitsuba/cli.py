@@ -39,7 +39,7 @@ def check(ctx, scenes):
         # file names may carry undecodable bytes (surrogates): never fail to print them
         click.echo(text.encode(encoding, "backslashreplace").decode(encoding), err=err)
 
-    ctx.exit(check_scenes(scenes, echo))
+    ctx.exit(0 if check_scenes(scenes, echo) else EXIT_SCENE_ERROR)
 
 
 # The render and fit commands live in modules of their own.

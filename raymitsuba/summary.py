@@ -21,7 +21,8 @@ import math
 from collections import Counter
 from typing import List, Optional, Tuple
 
-from raymitsuba.model import LightKind, ObjectKind, Scene, SceneObject, Vec3
+from raymitsuba.model import LightKind, ObjectKind, RayError, Scene, SceneObject, Vec3
+from raymitsuba.parser import parse_file
 
 Box = Tuple[Vec3, Vec3]  # (lower corner, upper corner)
 
@@ -111,17 +112,13 @@ def summarize(scene: Scene) -> str:
     return "\n".join([f"{scene.file}: ok"] + ["  " + line for line in summary_lines(scene)])
 
 
-def check_scenes(paths, echo) -> int:
-    """Parse every file of ``paths``; print summaries and diagnostics; return the exit status.
+def check_scenes(paths, echo) -> bool:
+    """Parse every file of ``paths``; print summaries and diagnostics; True if all are valid.
 
     ``echo(text, err=False)`` prints a line (``click.echo``): summaries to stdout,
-    diagnostics to stderr. The status is 0 when every scene is valid, 2 when any
-    has an error. Nothing but :class:`RayError` is expected from the parser.
+    diagnostics to stderr. Nothing but :class:`RayError` is expected from the parser.
     """
-    from raymitsuba.parser import parse_file
-    from raymitsuba.model import RayError
-
-    status = 0
+    all_valid = True
     for path in paths:
         try:
             scene = parse_file(path)
@@ -130,9 +127,9 @@ def check_scenes(paths, echo) -> int:
                 echo(diagnostic.format(), err=True)
             n = len(exc.errors)
             echo(f"{exc.diagnostics[0].file}: invalid, {n} error{'s' if n != 1 else ''}", err=True)
-            status = 2
+            all_valid = False
             continue
         for diagnostic in scene.warnings:
             echo(diagnostic.format(), err=True)
         echo(summarize(scene))
-    return status
+    return all_valid

@@ -1,5 +1,5 @@
 """Tests of raymitsuba/summary.py: exact world bounding boxes, the summary's lines, and
-check_scenes' routing of summaries, diagnostics and the exit status."""
+check_scenes' routing of summaries and diagnostics."""
 
 from __future__ import annotations
 
@@ -112,18 +112,18 @@ class Echo:
         self.lines.append(("stderr" if err else "stdout", text))
 
 
-def test_summaries_go_to_stdout_diagnostics_to_stderr_and_any_error_makes_2(tmp_path):
+def test_summaries_go_to_stdout_diagnostics_to_stderr_and_any_error_makes_it_false(tmp_path):
     good, bad = tmp_path / "good.ray", tmp_path / "bad.ray"
     good.write_text("sphere\n")  # a warning: no light
     bad.write_text("sphere 1\nfov 0\nlight 1 1 1 ambient\n")
     echo = Echo()
-    assert check_scenes([str(good)], echo) == 0
+    assert check_scenes([str(good)], echo) is True
     assert [stream for stream, _ in echo.lines] == ["stderr", "stdout"]
     assert echo.lines[0][1].startswith(f"{good}:1:1: warning:")
     assert echo.lines[1][1].startswith(f"{good}: ok\n")
 
     echo = Echo()
-    assert check_scenes([str(bad), str(good)], echo) == 2
+    assert check_scenes([str(bad), str(good)], echo) is False
     err = [text for stream, text in echo.lines if stream == "stderr"]
     assert err[0].startswith(f"{bad}:1:8: error:") and err[1].startswith(f"{bad}:2:5: error:")
     assert err[2] == f"{bad}: invalid, 2 errors"
@@ -134,5 +134,5 @@ def test_one_error_is_singular(tmp_path):
     path = tmp_path / "one.ray"
     path.write_text("pop\n")
     echo = Echo()
-    assert check_scenes([str(path)], echo) == 2
+    assert check_scenes([str(path)], echo) is False
     assert echo.lines[-1] == ("stderr", f"{path}: invalid, 1 error")
