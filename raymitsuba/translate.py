@@ -141,7 +141,7 @@ class Surfaces:
             if obj.texture is not None:
                 surface["texture"] = {"type": "bitmap", "filename": obj.texture.path,
                                       "raw": not self.options.srgb, "wrap_mode": "repeat",
-                                      "filter_type": "bilinear", "to_uv": UV_TO_IMAGE(self.mi)}
+                                      "filter_type": "bilinear", "to_uv": uv_to_image(self.mi)}
             if obj.checker is not None:
                 surface["checker"] = {"type": "raychecker", "size": float(obj.checker)}
             self.dicts[surface_id] = surface
@@ -192,7 +192,7 @@ def shape(obj: SceneObject, model, options, mi) -> dict:
     raise ValueError(f"no shape for {obj.kind}")
 
 
-def UV_TO_IMAGE(mi):
+def uv_to_image(mi):
     """Texture coordinates to Mitsuba's bitmap lookup: v = 0 is the image's *bottom* row
     (as in OpenGL and OBJ; Mitsuba's bitmap has v = 0 at the top), u = 0 its left column."""
     return mi.ScalarTransform3f().translate([0.0, 1.0]) @ mi.ScalarTransform3f().scale([1.0, -1.0])
