@@ -11,7 +11,7 @@ import sys
 
 import click
 
-EXIT_SCENE_ERROR = 2
+from raymitsuba.cli_common import EXIT_SCENE_ERROR
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

@@ -11,23 +11,17 @@ import sys
 
 import click
 
-from raymitsuba import images
+from raymitsuba import cli_common, images
 from raymitsuba.atomic import atomic_path
+from raymitsuba.cli_common import EXIT_FAILURE, EXIT_SCENE_ERROR, report
 from raymitsuba.model import RayError
 
-EXIT_USAGE = 2  # scene errors, bad options, unreadable target: like click's own usage errors
-EXIT_FAILURE = 1
 PLOT_FORMATS = (".png", ".pdf", ".svg")
 
 
-def report(diagnostics) -> None:
-    for d in diagnostics:
-        click.echo(d.format(), err=True)
-
-
-def fail(message: str, code: int = EXIT_USAGE):
-    click.echo(f"raymitsuba fit: error: {message}", err=True)
-    sys.exit(code)
+def fail(message: str, code: int = EXIT_SCENE_ERROR):
+    """Exit with ``raymitsuba fit: error: MESSAGE`` (by default for bad input: status 2)."""
+    cli_common.fail("raymitsuba fit", message, code)
 
 
 def parse_scene(path: str):
@@ -38,7 +32,7 @@ def parse_scene(path: str):
         model = parser.parse_file(path)
     except RayError as e:
         report(e.diagnostics)
-        sys.exit(EXIT_USAGE)
+        sys.exit(EXIT_SCENE_ERROR)
     try:
         with open(path, "rb") as f:
             data = f.read()
@@ -153,8 +147,7 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srg
     except OSError as e:
         fail(f"cannot write the output: {e}", EXIT_FAILURE)
     except Exception as e:  # Mitsuba's own errors (e.g. a texture it cannot decode)
-        message = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
-        fail(f"{scene}: {message}", EXIT_FAILURE)
+        fail(f"{scene}: {cli_common.error_message(e)}", EXIT_FAILURE)
 
     click.echo(f"fitted {len(selected)} parameter(s) in {result.iterations} iterations, "
                f"{result.seconds:.1f} s: loss {result.losses[0]:.6e} -> {result.final_loss:.6e}")
