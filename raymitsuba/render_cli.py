@@ -8,20 +8,10 @@ import time
 import click
 
 from raymitsuba import images
+from raymitsuba.cli_common import EXIT_FAILURE, EXIT_SCENE_ERROR, error_message, fail, report
 from raymitsuba.model import RayError
 
-EXIT_SCENE_ERROR = 2
-EXIT_FAILURE = 1
-
-
-def report(diagnostics) -> None:
-    for d in diagnostics:
-        click.echo(d.format(), err=True)
-
-
-def fail(message: str, code: int = EXIT_FAILURE):
-    click.echo(f"raymitsuba: error: {message}", err=True)
-    sys.exit(code)
+COMMAND = "raymitsuba"
 
 
 class Progress:
@@ -90,10 +80,10 @@ def render(scene, output, width, height, spp, max_depth, srgb):
         progress.close()
         images.write(output, image, srgb=srgb)
     except LLVMError as e:
-        fail(str(e))
+        fail(COMMAND, str(e), EXIT_FAILURE)
     except KeyboardInterrupt:
-        fail("interrupted; no output written", 130)
+        fail(COMMAND, "interrupted; no output written", 130)
     except Exception as e:  # Mitsuba's own errors (e.g. a texture it cannot decode)
-        fail(f"{scene}: {str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__}")
+        fail(COMMAND, f"{scene}: {error_message(e)}", EXIT_FAILURE)
     finally:
         progress.close()
