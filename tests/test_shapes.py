@@ -2,8 +2,6 @@
 cylinders, cones, planes and triangles against analytic float64 ray casts; the transform
 stack's order; triangles' front side; texture coordinates of triangles."""
 
-import math
-
 import numpy as np
 import pytest
 
