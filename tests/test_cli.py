@@ -112,7 +112,7 @@ class TestCheck:
         assert result.exception is None or isinstance(result.exception, SystemExit)
         assert "Traceback" not in result.output and "error:" in result.stderr
 
-    def test_empty_scene(self, tmp_path):
+    def test_an_empty_scene_is_valid_and_has_no_bounds(self, tmp_path):
         path = tmp_path / "empty.ray"
         path.write_text("")
         result = run("check", str(path))
@@ -120,10 +120,10 @@ class TestCheck:
         assert "  objects    0" in result.stdout
         assert "  bounds     none (no finite objects)" in result.stdout
 
-    def test_needs_a_scene(self):
+    def test_no_scene_is_a_usage_error(self):
         assert run("check").exit_code == 2  # click's usage error
 
-    def test_help(self):
+    def test_help_describes_the_exit_status(self):
         result = run("check", "--help")
         assert result.exit_code == 0
         assert "Validate .RAY SCENES" in result.stdout and "Exit status 0" in result.stdout
@@ -141,7 +141,7 @@ class TestCheck:
         assert result.returncode == 0, result.stderr
         assert result.stdout.splitlines()[-1] == "[]"
 
-    def test_python_dash_m(self, valid, invalid):
+    def test_python_dash_m_runs_it_with_the_same_statuses(self, valid, invalid):
         ok = subprocess.run([sys.executable, "-m", "raymitsuba", "check", str(valid)],
                             capture_output=True, text=True, timeout=120)
         assert ok.returncode == 0 and f"{valid}: ok" in ok.stdout

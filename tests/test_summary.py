@@ -16,7 +16,7 @@ def bounds(text):
 # ---- bounds --------------------------------------------------------------------------------
 
 
-def test_sphere_translated_and_scaled():
+def test_sphere_box_follows_translate_then_scale():
     assert bounds("translate 2 0 0\nscale 2 2 2\nsphere") == ((2, -2, -2), (6, 2, 2))
 
 
@@ -27,7 +27,7 @@ def test_ellipsoid_is_exact_under_rotation():
     assert hi[2] == 1 and lo[2] == -1
 
 
-def test_cylinder():
+def test_cylinder_box_is_half_its_axis_plus_the_projected_disk():
     assert bounds("cylinder") == ((-1, -0.5, -1), (1, 0.5, 1))
     lo, hi = bounds("rotateX 90\ncylinder")  # axis along z
     assert (lo, hi) == ((-1, -1, -0.5), (1, 1, 0.5))
@@ -40,7 +40,7 @@ def test_tilted_cylinder_is_exact():
     assert math.isclose(hi[0], 0.5 * s + c) and math.isclose(hi[1], 0.5 * c + s)
 
 
-def test_cone():
+def test_cone_box_holds_the_base_disk_and_the_apex():
     assert bounds("cone") == ((-1, -0.5, -1), (1, 0.5, 1))
     assert bounds("rotateZ 90\ncone") == ((-0.5, -1, -1), (0.5, 1, 1))
     assert bounds("scale 1 4 1\ncone") == ((-1, -2, -1), (1, 2, 1))
@@ -61,7 +61,7 @@ def test_plane_has_no_box():
     assert object_bounds(scene.objects[0]) is None and scene_bounds(scene) is None
 
 
-def test_union():
+def test_scene_box_is_the_union_of_the_finite_objects():
     assert bounds("sphere\ntranslate 10 0 0\nsphere\nplane") == ((-1, -1, -1), (11, 1, 1))
 
 
