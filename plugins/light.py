@@ -29,6 +29,7 @@ import drjit as dr
 import mitsuba as mi
 
 KINDS = ("ambient", "point", "directional", "spotlight")
+PARAMETERS = ("color", "position", "direction", "shape_coefficient")
 
 
 class Light(mi.Emitter):
@@ -45,6 +46,7 @@ class Light(mi.Emitter):
         if self.kind == "spotlight":
             self.shape_coefficient = mi.Float(props.get("shape_coefficient", 1.0))
         self.m_flags = mi.EmitterFlags.Empty if self.is_ambient else mi.EmitterFlags.DeltaPosition
+        self.parameters_changed([])
 
     @property
     def is_ambient(self):
@@ -65,13 +67,13 @@ class Light(mi.Emitter):
         return wi, dist, self.color * dr.select(cos_a > 0, falloff, 0.0)
 
     def traverse(self, callback):
-        callback.put("color", self.color, mi.ParamFlags.Differentiable)
-        for name in ("position", "direction", "shape_coefficient"):
+        for name in PARAMETERS:
             if hasattr(self, name):
                 callback.put(name, getattr(self, name), mi.ParamFlags.Differentiable)
 
     def parameters_changed(self, keys):
-        pass
+        # Opaque: a new value must not become a new constant in the kernels (see phong.py).
+        dr.make_opaque(*(getattr(self, name) for name in PARAMETERS if hasattr(self, name)))
 
     def to_string(self):
         return f"Light[kind={self.kind}, color={self.color}]"

@@ -56,6 +56,7 @@ class Phong(mi.BSDF):
         self.color = mi.Color3f(props.get("color", mi.ScalarColor3f(1.0)))
         for name in FLOAT_PARAMS:
             setattr(self, name, mi.Float(props.get(name, DEFAULTS[name])))
+        self.parameters_changed([])
         self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.GlossyReflection \
             | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
         self.m_components = [self.m_flags]
@@ -100,7 +101,9 @@ class Phong(mi.BSDF):
             callback.put(name, getattr(self, name), mi.ParamFlags.Differentiable)
 
     def parameters_changed(self, keys):
-        pass
+        # Opaque: a new value must not become a new constant in the kernels (a recompile
+        # at every step of a fit).
+        dr.make_opaque(self.color, *(getattr(self, name) for name in FLOAT_PARAMS))
 
     def to_string(self):
         return f"Phong[color={self.color}, kd={self.diffuse_mix}, ks={self.specular_mix}]"

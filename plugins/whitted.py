@@ -420,11 +420,16 @@ class Whitted(mi.CppADIntegrator):
         generation.weight_r, generation.has_r = weight_r, has_r
         generation.weight_t, generation.has_t = weight_t, has_t
         generation.child_r = dr.prefix_sum(mi.UInt32(has_r))  # exclusive: rank among the lanes with a child
-        generation.child_t = dr.prefix_sum(mi.UInt32(has_t)) + count_r
-        # dr.concat rejects an empty part (a scene with mirrors but no glass, or the reverse)
-        parent = index_t if count_r == 0 else index_r if count_t == 0 else \
-            dr.concat([index_r, index_t])
-        is_t = dr.arange(mi.UInt32, count_r + count_t) >= count_r
+        # The count is data, not a constant of the kernels: it changes from render to render.
+        first_t = dr.opaque(mi.UInt32, count_r)
+        generation.child_t = dr.prefix_sum(mi.UInt32(has_t)) + first_t
+        lane = dr.arange(mi.UInt32, count_r + count_t)
+        is_t = lane >= first_t
+        if count_r == 0 or count_t == 0:  # (a gather from an empty array is an error)
+            parent = index_t if count_r == 0 else index_r
+        else:  # not dr.concat: it would make count_r a constant of the kernel
+            parent = dr.select(is_t, dr.gather(mi.UInt32, index_t, lane - first_t, is_t),
+                               dr.gather(mi.UInt32, index_r, lane, ~is_t))
         reflected, refracted = step.reflected, step.refracted
         origin = dr.select(is_t, dr.gather(mi.Point3f, refracted.o, parent),
                            dr.gather(mi.Point3f, reflected.o, parent))
