@@ -166,13 +166,15 @@ class Surfaces:
         materials = [bsdf.material for bsdf in bsdfs.values()]
         self.textures = [(mi.UInt32(slot), bsdf.textures)
                          for slot, bsdf in enumerate(bsdfs.values()) if bsdf.textures]
-        self.transparent = False
-        if not materials:
-            return
-        self.color = mi.Color3f(*(dr.concat([mi.Float(m.color[c]) for m in materials])
-                                  for c in range(3)))
-        for name in FLOAT_PARAMS:
-            setattr(self, name, dr.concat([mi.Float(getattr(m, name)) for m in materials]))
+        if not materials:  # a scene with no objects: one slot of zeros, never gathered from
+            self.color = dr.zeros(mi.Color3f, 1)
+            for name in FLOAT_PARAMS:
+                setattr(self, name, dr.zeros(mi.Float, 1))
+        else:
+            self.color = mi.Color3f(*(dr.concat([mi.Float(m.color[c]) for m in materials])
+                                      for c in range(3)))
+            for name in FLOAT_PARAMS:
+                setattr(self, name, dr.concat([mi.Float(getattr(m, name)) for m in materials]))
         self.transparent = bool(dr.any(self.refractivity > 0))
 
     def slot(self, si, active):
@@ -280,14 +282,14 @@ class Whitted(mi.CppADIntegrator):
         return color
 
     def step(self, scene, terms, ray, depth, loop_mode, children):
-        """Intersect and shade ``ray``; with ``children``, also the children's weights and rays."""
-        self.loop_mode = loop_mode
+        """Intersect and shade ``ray``; with ``children``, also the children's weights and rays.
+        ``loop_mode``: "symbolic" or "evaluated" (differentiable) shadow-ray loops."""
         si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
         hit = si.is_valid()
         surfaces = terms.surfaces
         slot = surfaces.slot(si, hit)
         color = surfaces.base_color(si, slot, hit)
-        local = self.shade(scene, terms, si, slot, color, ray)
+        local = self.shade(scene, terms, si, slot, color, ray, loop_mode)
         local = dr.select(hit, local, terms.background)
         if not children:
             return Step(local, hit)
@@ -307,7 +309,7 @@ class Whitted(mi.CppADIntegrator):
         n = si.sh_frame.n
         return dr.select(dr.dot(n, ray.d) > 0, -n, n)
 
-    def shade(self, scene, terms, si, slot, color, ray):
+    def shade(self, scene, terms, si, slot, color, ray, loop_mode):
         """L_local at each hit: ambient term plus each light's shadowed Phong term."""
         hit = si.is_valid()
         surfaces, lights = terms.surfaces, terms.direct
@@ -322,7 +324,8 @@ class Whitted(mi.CppADIntegrator):
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
-            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, lifted)
+            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, loop_mode,
+                                               lifted)
             phong = phong_local(n, v, wi, color, kd, ks, exponent)
             result += dr.select(active, intensity * phong * transmittance, 0.0)
         return result
@@ -358,7 +361,7 @@ class Whitted(mi.CppADIntegrator):
             lifted = dr.select(mask, p, lifted)
         return lifted + (1.0 + dr.max(dr.abs(lifted))) * mi.math.RayEpsilon * si.sh_frame.n
 
-    def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None):
+    def transmittance(self, scene, surfaces, si, wi, dist, active, loop_mode, lifted=None):
         """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
         ray = si.spawn_ray(wi)
         if lifted is not None:  # see lifted_point
@@ -372,7 +375,7 @@ class Whitted(mi.CppADIntegrator):
         # crossed (*which* surfaces are crossed changes in jumps). Unless a derivative
         # with respect to some kt is wanted, it is computed detached, in a symbolic loop.
         if dr.grad_enabled(surfaces.refractivity):
-            return self.crossings(scene, surfaces, ray, wi, active & blocked, self.loop_mode)
+            return self.crossings(scene, surfaces, ray, wi, active & blocked, loop_mode)
         with dr.suspend_grad():
             if not surfaces.transparent:
                 return dr.select(blocked, 0.0, 1.0)  # nothing lets light through

@@ -3,7 +3,7 @@
     loaded = raymitsuba.load("scenes/whitted.ray", width=256, height=256)
     image = raymitsuba.render(loaded)             # dr TensorXf, (H, W, 3), linear
     loaded.params["mat1.color"]                   # Color3f, differentiable
-    loaded.params["light1.position"]
+    loaded.params["light2.position"]
 
 Parameter keys (``mi.traverse`` of the scene): ``mat{i}.{field}`` with i the
 material's number in file order (``mat0`` is the default material) and field
@@ -15,7 +15,6 @@ reflectivity, refractivity, ior; ``light{j}.color``, ``.position``,
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from typing import Any
 

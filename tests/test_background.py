@@ -17,9 +17,6 @@ def test_color_defaults_to_black_and_is_a_differentiable_parameter(mitsuba):
     assert not params.flags("color") & int(mi.ParamFlags.NonDifferentiable)
 
 
-@pytest.mark.xfail(strict=True, raises=RuntimeError,
-                   reason="plugins/whitted.py: Surfaces of a scene without shapes has no parameter "
-                          "arrays, so the first gather fails (owner: the integrator's engineer)")
 def test_every_pixel_of_an_empty_scene_is_the_background():
     image = render_ray("background 0.2 0.4 0.6\n", width=6, height=4)
     np.testing.assert_array_equal(image, np.broadcast_to(np.float32([0.2, 0.4, 0.6]), (4, 6, 3)))
