@@ -15,9 +15,10 @@ existing one.
 from __future__ import annotations
 
 import os
-import tempfile
 
 import numpy as np
+
+from raymitsuba.atomic import atomic_path
 
 WRITERS = (".exr", ".png", ".jpg", ".jpeg", ".npy")
 
@@ -46,10 +47,7 @@ def write(path: str, image, srgb: bool = False) -> None:
     check_writable(path)
     image = np.asarray(image, dtype=np.float32)
     ext = os.path.splitext(path)[1].lower()
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".raymitsuba-", suffix=ext, dir=directory)
-    os.close(fd)
-    try:
+    with atomic_path(path, ext) as tmp:
         if ext == ".exr":
             _write_exr(tmp, image)
         elif ext == ".npy":
@@ -57,14 +55,6 @@ def write(path: str, image, srgb: bool = False) -> None:
                 np.save(f, image)
         else:
             _write_8bit(tmp, image, srgb, "JPEG" if ext in (".jpg", ".jpeg") else "PNG")
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual mode
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 # RLE: lossless and readable by every OpenEXR version, like ZIP, but ~3x less CPU time to
