@@ -112,3 +112,31 @@ def disk(segments, y, normal_y, start):
     k = np.arange(segments)
     faces = np.stack([np.zeros_like(k), k + 1, k + 2], -1) + start
     return positions, normals, texcoords, faces
+
+
+def side(segments, radius_at, normal_at, heights):
+    """A surface of revolution about y sampled at ``heights`` (bottom to top)."""
+    phi, u = ring(segments)
+    y, p = np.meshgrid(heights, phi, indexing="ij")
+    r = radius_at(y)
+    positions = np.stack([r * np.cos(p), y, -r * np.sin(p)], -1).reshape(-1, 3)
+    normals = normal_at(np.cos(p), y, -np.sin(p)).reshape(-1, 3)
+    uu, vv = np.meshgrid(u, heights + 0.5, indexing="xy")
+    texcoords = np.stack([uu, vv], -1).reshape(-1, 2)
+    faces = grid_faces(len(heights) - 1, segments)
+    return positions, normals, texcoords, faces
+
+
+def closed(parts):
+    """Concatenate (positions, normals, texcoords, faces) parts, offsetting face indices."""
+    out, start = [[], [], [], []], 0
+    for positions, normals, texcoords, faces in parts:
+        for i, a in enumerate((positions, normals, texcoords, faces + start)):
+            out[i].append(a)
+        start += len(positions)
+    return [np.concatenate(a) for a in out]
+
+
+def segment_count(props):
+    """The ``segments`` property of a curved shape (default 128, at least 8)."""
+    return max(int(props.get("segments", 128)), 8)

@@ -21,7 +21,6 @@ import numpy as np
 import mitsuba as mi
 
 from . import _mesh
-from .cylinder import closed, side
 
 RING_RATIO = 0.8
 
@@ -38,18 +37,18 @@ def apex_fan(segments):
 
 class Cone(mi.Mesh):
     def __init__(self, props):
-        segments = max(int(props.get("segments", 128)), 8)
+        segments = _mesh.segment_count(props)
         # ring radii 1, 0.8, 0.64, ... down to about one segment's width 2 pi / segments
         rings = max(int(np.ceil(np.log(2.0 * np.pi / segments) / np.log(RING_RATIO))), 0) + 1
         heights = 0.5 - RING_RATIO ** np.arange(rings)
-        base = side(segments, lambda y: 0.5 - y,
-                    lambda x, y, z: np.stack([x, np.ones_like(y), z], -1) / np.sqrt(2.0),
-                    heights)
+        base = _mesh.side(segments, lambda y: 0.5 - y,
+                          lambda x, y, z: np.stack([x, np.ones_like(y), z], -1) / np.sqrt(2.0),
+                          heights)
         top_p, top_n, top_t = apex_fan(segments)
         k = np.arange(segments)
         top_ring = (rings - 1) * (segments + 1)
         fan = np.stack([top_ring + k, top_ring + k + 1, len(base[0]) + k], -1)
         wall = (np.concatenate([base[0], top_p]), np.concatenate([base[1], top_n]),
                 np.concatenate([base[2], top_t]), np.concatenate([base[3], fan]))
-        parts = closed([wall, _mesh.disk(segments, -0.5, -1.0, 0)])
+        parts = _mesh.closed([wall, _mesh.disk(segments, -0.5, -1.0, 0)])
         _mesh.initialize(self, "cone", props, *parts)

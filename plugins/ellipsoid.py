@@ -25,7 +25,7 @@ from . import _mesh
 
 class Ellipsoid(mi.Mesh):
     def __init__(self, props):
-        segments = max(int(props.get("segments", 128)), 8)
+        segments = _mesh.segment_count(props)
         rings = segments // 2
         phi, u = _mesh.ring(segments)
         theta = np.linspace(0.0, np.pi, rings + 1)

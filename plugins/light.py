@@ -28,7 +28,9 @@ Parameters (exposed by ``mi.traverse``; all differentiable):
 import drjit as dr
 import mitsuba as mi
 
-KINDS = ("ambient", "point", "directional", "spotlight")
+from raymitsuba.model import LightKind
+
+KINDS = tuple(kind.value for kind in LightKind)  # ambient, point, directional, spotlight
 PARAMETERS = ("color", "position", "direction", "shape_coefficient")
 
 

@@ -30,10 +30,11 @@ Also reachable as ``eval_attribute_3("ambient_reflectance")`` (ka C) and
 import drjit as dr
 import mitsuba as mi
 
-FLOAT_PARAMS = ("ambient_mix", "diffuse_mix", "specular_mix", "phong_coeff",
-                "reflectivity", "refractivity", "ior")
-DEFAULTS = {"ambient_mix": 1.0, "diffuse_mix": 1.0, "specular_mix": 0.0, "phong_coeff": 1.0,
-            "reflectivity": 0.0, "refractivity": 0.0, "ior": 1.0}
+from raymitsuba.model import Material
+
+# The parameters and their defaults are the format's, decided once in the scene model.
+FLOAT_PARAMS = Material.FIELDS[1:]  # every field but the color
+DEFAULTS = {name: getattr(Material(), name) for name in FLOAT_PARAMS}
 
 
 def phong_lobe(n_dot_l, n_dot_v, l_dot_v, exponent):
