@@ -88,6 +88,18 @@ def stratum_offset(s, spp):
     return mi.Point2f(x, y - dr.floor(y))
 
 
+def with_kt_derivative(surfaces, transmittance, counts):
+    """The shadow transmittance T = prod_s kt_s^n_s (n_s crossings of transparent surface s),
+    computed detached, given its derivative with respect to the kt: dT = T sum_s n_s dkt_s / kt_s.
+    Written as T prod_s (kt_s / detach(kt_s))^n_s, whose value is exactly T."""
+    if not dr.grad_enabled(surfaces.refractivity):
+        return transmittance
+    for s, count in zip(surfaces.transparent_slots, counts):
+        kt = dr.gather(mi.Float, surfaces.refractivity, mi.UInt32(s))
+        transmittance = transmittance * dr.power(kt / dr.detach(kt), mi.Float(count))
+    return transmittance
+
+
 class Generation:
     """One depth of the ray tree, as the trace leaves it.
 
@@ -175,7 +187,8 @@ class Surfaces:
                                       for c in range(3)))
             for name in FLOAT_PARAMS:
                 setattr(self, name, dr.concat([mi.Float(getattr(m, name)) for m in materials]))
-        self.transparent = bool(dr.any(self.refractivity > 0))
+        # Surfaces that let shadow rays through (kt > 0), by slot.
+        self.transparent_slots = [int(i) for i in np.flatnonzero(self.refractivity.numpy() > 0)]
 
     def slot(self, si, active):
         return self.slot_of(si.bsdf(), active)
@@ -214,28 +227,25 @@ class Whitted(mi.CppADIntegrator):
 
     def render_forward(self, scene, params, sensor=0, seed=0, spp=0):
         with dr.resume_grad():
-            image = self.render_image(scene, sensor, spp, differentiable=True)
+            image = self.render_image(scene, sensor, spp)
             dr.forward_to(image)
             return dr.grad(image)
 
     def render_backward(self, scene, params, grad_in, sensor=0, seed=0, spp=0):
         with dr.resume_grad():
-            image = self.render_image(scene, sensor, spp, differentiable=True)
+            image = self.render_image(scene, sensor, spp)
             dr.backward_from(image * grad_in)
 
     # -- the image -----------------------------------------------------------------------------
-    def render_image(self, scene, sensor=0, spp=0, differentiable=False):
-        """The (H, W, 3) image: per-pixel box-filtered average of the camera rays' colors.
-
-        ``differentiable`` selects evaluated (instead of symbolic) shadow-ray loops,
-        through which Dr.Jit can propagate derivatives in both directions.
-        """
+    def render_image(self, scene, sensor=0, spp=0):
+        """The (H, W, 3) image: per-pixel box-filtered average of the camera rays' colors
+        (differentiable when called with AD enabled)."""
         if isinstance(sensor, int):
             sensor = scene.sensors()[sensor]
         spp = spp or sensor.sampler().sample_count()
         width, height = sensor.film().crop_size()
         ray = self.camera_rays(sensor, width, height, spp)
-        color = self.trace(scene, ray, "evaluated" if differentiable else "symbolic")
+        color = self.trace(scene, ray)
         pixel = dr.arange(mi.UInt32, width * height) * spp
         image = dr.gather(mi.Color3f, color, pixel)
         for s in range(1, spp):
@@ -256,7 +266,7 @@ class Whitted(mi.CppADIntegrator):
         return mi.Ray3f(ray)
 
     # -- the ray tree --------------------------------------------------------------------------
-    def trace(self, scene, ray, loop_mode):
+    def trace(self, scene, ray):
         """The color of each ray of ``ray`` (one lane per ray) through its whole tree."""
         terms = SceneTerms(scene)
         generations = []
@@ -264,7 +274,7 @@ class Whitted(mi.CppADIntegrator):
         for depth in range(self.max_depth + 1):
             self.rays_per_generation.append(dr.width(ray))
             last = depth == self.max_depth
-            step = self.step(scene, terms, ray, depth, loop_mode, not last)
+            step = self.step(scene, terms, ray, depth, not last)
             generation = Generation(step.local)
             generations.append(generation)
             if last:
@@ -281,15 +291,15 @@ class Whitted(mi.CppADIntegrator):
             dr.eval(color)  # once for all three channels: the next step gathers from each
         return color
 
-    def step(self, scene, terms, ray, depth, loop_mode, children):
+    def step(self, scene, terms, ray, depth, children):
         """Intersect and shade ``ray``; with ``children``, also the children's weights and rays.
-        ``loop_mode``: "symbolic" or "evaluated" (differentiable) shadow-ray loops."""
+"""
         si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
         hit = si.is_valid()
         surfaces = terms.surfaces
         slot = surfaces.slot(si, hit)
         color = surfaces.base_color(si, slot, hit)
-        local = self.shade(scene, terms, si, slot, color, ray, loop_mode)
+        local = self.shade(scene, terms, si, slot, color, ray)
         local = dr.select(hit, local, terms.background)
         if not children:
             return Step(local, hit)
@@ -309,7 +319,7 @@ class Whitted(mi.CppADIntegrator):
         n = si.sh_frame.n
         return dr.select(dr.dot(n, ray.d) > 0, -n, n)
 
-    def shade(self, scene, terms, si, slot, color, ray, loop_mode):
+    def shade(self, scene, terms, si, slot, color, ray):
         """L_local at each hit: ambient term plus each light's shadowed Phong term."""
         hit = si.is_valid()
         surfaces, lights = terms.surfaces, terms.direct
@@ -324,8 +334,7 @@ class Whitted(mi.CppADIntegrator):
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
-            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, loop_mode,
-                                               lifted)
+            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, lifted)
             phong = phong_local(n, v, wi, color, kd, ks, exponent)
             result += dr.select(active, intensity * phong * transmittance, 0.0)
         return result
@@ -361,37 +370,40 @@ class Whitted(mi.CppADIntegrator):
             lifted = dr.select(mask, p, lifted)
         return lifted + (1.0 + dr.max(dr.abs(lifted))) * mi.math.RayEpsilon * si.sh_frame.n
 
-    def transmittance(self, scene, surfaces, si, wi, dist, active, loop_mode, lifted=None):
+    def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None):
         """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
         ray = si.spawn_ray(wi)
         if lifted is not None:  # see lifted_point
             terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
             ray.o = dr.select(terminator, lifted, ray.o)
         ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
-        # A cheap any-hit test first: most shadow rays cross nothing, and then the
-        # transmittance is exactly 1 (with no derivative). Only the others walk their crossings.
-        blocked = scene.ray_test(ray, active)
-        # The transmittance depends on the parameters only through the kt of the surfaces
-        # crossed (*which* surfaces are crossed changes in jumps). Unless a derivative
-        # with respect to some kt is wanted, it is computed detached, in a symbolic loop.
-        if dr.grad_enabled(surfaces.refractivity):
-            return self.crossings(scene, surfaces, ray, wi, active & blocked, loop_mode)
+        # The walk is detached: the parameters reach the transmittance only through the kt
+        # of the surfaces crossed (*which* surfaces are crossed changes in jumps), and that
+        # derivative is attached in closed form afterwards (see ``with_kt_derivative``).
         with dr.suspend_grad():
-            if not surfaces.transparent:
+            # A cheap any-hit test first: most shadow rays cross nothing, and then the
+            # transmittance is exactly 1. Only the others walk their crossings.
+            blocked = scene.ray_test(ray, active)
+            if not surfaces.transparent_slots:
                 return dr.select(blocked, 0.0, 1.0)  # nothing lets light through
-            return self.crossings(scene, surfaces, ray, wi, active & blocked, "symbolic")
+            transmittance, counts = self.crossings(scene, surfaces, ray, wi, active & blocked)
+        return with_kt_derivative(surfaces, transmittance, counts)
 
-    def crossings(self, scene, surfaces, ray, wi, active, mode):
-        """Product of kt over the surfaces that ``ray`` crosses (0 past max_shadow_crossings)."""
+    def crossings(self, scene, surfaces, ray, wi, active):
+        """(Product of kt over the surfaces ``ray`` crosses, 0 past max_shadow_crossings;
+        for each transparent surface, how many times the ray crossed it)."""
+        slots = surfaces.transparent_slots
 
-        def body(ray, transmittance, crossings, active):
+        def body(ray, transmittance, crossings, counts, active):
             # Only the distance and the BSDF of each crossing matter: a preliminary
             # intersection is enough. The next ray starts just past the crossing.
             crossing = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
             crossed = active & crossing.is_valid()
-            bsdf = crossing.shape.bsdf()
-            kt = surfaces.get("refractivity", surfaces.slot_of(bsdf, crossed), crossed)
+            slot = surfaces.slot_of(crossing.shape.bsdf(), crossed)
+            kt = surfaces.get("refractivity", slot, crossed)
             transmittance = dr.select(crossed, transmittance * kt, transmittance)
+            counts = tuple(count + dr.select(crossed & (slot == s), 1, 0)
+                           for count, s in zip(counts, slots))
             crossings += 1
             onward = crossed & (kt > 0)
             # Past max_shadow_crossings the light counts as blocked.
@@ -401,12 +413,14 @@ class Whitted(mi.CppADIntegrator):
             step = (1.0 + dr.max(dr.abs(p))) * mi.math.RayEpsilon
             ray = mi.Ray3f(dr.select(onward, p + step * ray.d, ray.o), ray.d,
                            dr.select(onward, ray.maxt - crossing.t - step, ray.maxt))
-            return ray, transmittance, crossings, onward & (crossings < self.max_shadow_crossings)
+            return ray, transmittance, crossings, counts, \
+                onward & (crossings < self.max_shadow_crossings)
 
-        state = (ray, mi.Float(1.0), mi.UInt32(0), mi.Bool(active))
-        _, transmittance, _, _ = dr.while_loop(state, lambda *s: s[-1], body,
-                                               mode=mode, label="shadow ray")
-        return transmittance
+        state = (ray, mi.Float(1.0), mi.UInt32(0), tuple(mi.UInt32(0) for _ in slots),
+                 mi.Bool(active))
+        _, transmittance, _, counts, _ = dr.while_loop(state, lambda *s: s[-1], body,
+                                                       label="shadow ray")
+        return transmittance, counts
 
     def spawn(self, generation, step):
         """Record the children of ``generation`` and return their rays (None: no children).
