@@ -32,8 +32,11 @@ children of the lanes that need them (weight > 0) are compacted with
 from the deepest generation back to the camera with gathers only. No atomics
 and no randomness: the image is bit-for-bit reproducible, and every step is
 differentiable (reverse and forward mode through ``render_backward`` /
-``render_forward``). A branch whose weight is exactly 0 is not traced, so the
-derivative with respect to kr or kt *at* 0 does not see the branch it would open.
+``render_forward``, which re-run the trace with AD enabled). Shadow rays walk
+their crossings detached, in a symbolic loop; the transmittance's derivative
+with respect to kt is attached in closed form (``with_kt_derivative``). A branch
+whose weight is exactly 0 is not traced, so the derivative with respect to kr or
+kt *at* 0 does not see the branch it would open.
 
 Pixel sampling: one sample per pixel goes through the pixel centre; ``spp = n^2``
 samples use the centres of an n x n grid of strata; other counts are stratified
@@ -106,12 +109,11 @@ class Generation:
     Per lane (one lane per ray of this depth): ``local`` (L_local, or the
     background on a miss), the weights of the reflected and refracted children
     and, where a child exists (``has_r`` / ``has_t``), its lane in the next
-    generation (``child_r`` / ``child_t``); finally ``color``, the color of the
-    lane's whole subtree.
+    generation (``child_r`` / ``child_t``).
     """
 
     def __init__(self, local):
-        self.local, self.color = local, None
+        self.local = local
         self.weight_r = self.child_r = self.has_r = None
         self.weight_t = self.child_t = self.has_t = None
 
