@@ -69,9 +69,13 @@ class Phong(mi.BSDF):
     textures = ()
 
     def eval(self, ctx, si, wo, active=True):
+        return self.eval_local(si, wo, self.color, active)
+
+    def eval_local(self, si, wo, color, active=True):
+        """The Phong term in the local shading frame, for the base color ``color``."""
         # Two-sided: in the local frame the facing normal is (0, 0, sign(wi.z)).
         n = mi.Vector3f(0.0, 0.0, dr.select(mi.Frame3f.cos_theta(si.wi) < 0, -1.0, 1.0))
-        value = phong_local(n, si.wi, wo, self.color, self.diffuse_mix, self.specular_mix,
+        value = phong_local(n, si.wi, wo, color, self.diffuse_mix, self.specular_mix,
                             self.phong_coeff)
         return dr.select(active, value, 0.0)
 

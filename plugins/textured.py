@@ -18,10 +18,8 @@ Parameters:
 * ``checker`` (mi.Texture, optional): a ``raychecker`` texture (1 or 0)
 """
 
-import drjit as dr
 import mitsuba as mi
 
-from .phong import phong_local
 
 
 class Textured(mi.BSDF):
@@ -39,11 +37,7 @@ class Textured(mi.BSDF):
         return color
 
     def eval(self, ctx, si, wo, active=True):
-        m = self.material
-        n = mi.Vector3f(0.0, 0.0, dr.select(mi.Frame3f.cos_theta(si.wi) < 0, -1.0, 1.0))
-        value = phong_local(n, si.wi, wo, self.color(si, active), m.diffuse_mix, m.specular_mix,
-                            m.phong_coeff)
-        return dr.select(active, value, 0.0)
+        return self.material.eval_local(si, wo, self.color(si, active), active)
 
     def eval_attribute_3(self, name, si, active=True):
         if name == "ambient_reflectance":

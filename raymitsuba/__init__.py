@@ -4,6 +4,9 @@ from raymitsuba.model import (Camera, Diagnostic, Light, LightKind, Material, Ob
                               RayError, Scene, SceneObject, Severity, Texture)
 
 __version__ = "0.1.0"
+__all__ = ["Camera", "Diagnostic", "Light", "LightKind", "Material", "ObjectKind", "RayError",
+           "Scene", "SceneObject", "Severity", "Texture",
+           "parse", "parse_file", "parse_text", "load", "render", "translate", "Loaded"]
 
 
 def __getattr__(name):

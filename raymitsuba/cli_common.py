@@ -23,6 +23,19 @@ def report(diagnostics) -> None:
         click.echo(d.format(), err=True)
 
 
+def parse_or_exit(path: str):
+    """The scene parsed from ``path``; on errors, print its diagnostics and exit with
+    :data:`EXIT_SCENE_ERROR`."""
+    from raymitsuba import parser
+    from raymitsuba.model import RayError
+
+    try:
+        return parser.parse_file(path)
+    except RayError as e:
+        report(e.diagnostics)
+        sys.exit(EXIT_SCENE_ERROR)
+
+
 def fail(command: str, message: str, code: int) -> None:
     """Print ``COMMAND: error: MESSAGE`` to stderr and exit with ``code``."""
     click.echo(f"{command}: error: {message}", err=True)

@@ -7,14 +7,12 @@ sizes relative to each parameter's scale), the valid ranges and the default para
 from __future__ import annotations
 
 import os
-import sys
 
 import click
 
 from raymitsuba import cli_common, images
 from raymitsuba.atomic import atomic_path
 from raymitsuba.cli_common import EXIT_FAILURE, EXIT_SCENE_ERROR, report
-from raymitsuba.model import RayError
 
 PLOT_FORMATS = (".png", ".pdf", ".svg")
 
@@ -26,13 +24,7 @@ def fail(message: str, code: int = EXIT_SCENE_ERROR):
 
 def parse_scene(path: str):
     """The parsed scene and its bytes (exit 2 with FILE:LINE:COL diagnostics on errors)."""
-    from raymitsuba import parser
-
-    try:
-        model = parser.parse_file(path)
-    except RayError as e:
-        report(e.diagnostics)
-        sys.exit(EXIT_SCENE_ERROR)
+    model = cli_common.parse_or_exit(path)
     try:
         with open(path, "rb") as f:
             data = f.read()

@@ -8,8 +8,7 @@ import time
 import click
 
 from raymitsuba import images
-from raymitsuba.cli_common import EXIT_FAILURE, EXIT_SCENE_ERROR, error_message, fail, report
-from raymitsuba.model import RayError
+from raymitsuba.cli_common import EXIT_FAILURE, error_message, fail, parse_or_exit, report
 
 COMMAND = "raymitsuba"
 
@@ -55,17 +54,11 @@ class Progress:
               help="Encode 8-bit output with the sRGB curve and decode 8-bit textures from it.")
 def render(scene, output, width, height, spp, max_depth, srgb):
     """Render the .RAY file SCENE to OUTPUT."""
-    from raymitsuba import parser
-
     try:
         images.check_writable(output)
     except images.ImageError as e:
         raise click.BadParameter(str(e), param_hint="--output")
-    try:
-        model = parser.parse_file(scene)
-    except RayError as e:
-        report(e.diagnostics)
-        sys.exit(EXIT_SCENE_ERROR)
+    model = parse_or_exit(scene)
     report(model.warnings)
 
     from raymitsuba import api, backend
