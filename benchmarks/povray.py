@@ -47,7 +47,7 @@ PRIMITIVES = {
 def export(scene: Scene, width: int, height: int) -> str:
     cam = scene.camera
     aspect = width / height
-    lines = ["#version 3.7;", "global_settings {{ max_trace_level 6 assumed_gamma 1.0 ambient_light rgb 0 }}",
+    lines = ["#version 3.7;", "global_settings { max_trace_level 6 assumed_gamma 1.0 ambient_light rgb 0 }",
              f"background {{ color rgb {vec(scene.background)} }}",
              # POV-Ray is left-handed: mirror x to keep the image the same way round.
              f"camera {{ perspective location {vec(cam.eye)} look_at {vec(cam.lookat)} "
