@@ -1,44 +1,73 @@
 """The surface table of the Whitted integrator: every surface's parameters as arrays
 indexed by a *slot*, and the scene's lights and background as shading needs them.
 
-A surface is one BSDF of the scene (a ``rayphong`` material or a ``raytextured``
-one). Instead of a virtual call per hit, the integrator maps the hit's BSDF
-pointer (its Dr.Jit registry id) to a slot and gathers the parameters from
-arrays built here at the start of every render.
+A surface is one BSDF of the scene (anything that provides the surface interface of
+``_protocol.py``: ``rayphong``, ``raytextured``). Instead of a virtual call per hit,
+the integrator maps the hit's BSDF pointer (its Dr.Jit registry id) to a slot and
+gathers the parameters from arrays built here at the start of every render.
+
+**Constant-size kernels.** Nothing here issues one JIT operation per surface, material
+or texture of the scene, so no kernel's size depends on how many there are:
+
+* slots: the distinct BSDF pointers of all shapes, read in one vectorized call, in
+  increasing registry id; a Python pass over the distinct surfaces only (no JIT work)
+  reads their materials, checker sizes and image textures;
+* parameter values: each material's (width-1, evaluated) values are read on the host,
+  assembled into one numpy array per parameter and uploaded as one array. A value
+  whose gradient is enabled is then *scattered* into the slots of its material (one
+  scatter per such value: the materials being fitted), so that the gathers carry its
+  derivative;
+* textures: the checkerboard is one formula with a square size by slot; image
+  textures are evaluated once per *distinct* texture object (a loop over the textures,
+  not over the surfaces; a scene has a handful).
+
+Lights stay unrolled (one shading term per light in the kernel: scenes have a
+handful; see ``SceneTerms``).
 """
 
 import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .background import Background
-from .light import Light
+from ._protocol import check_emitter, check_surface
+from .checkerboard import checker
 from .phong import FLOAT_PARAMS
 
+NO_SLOT = 0xFFFFFFFF  # a slot index that names no surface (e.g. an unused crossing record)
 
-def with_kt_derivative(surfaces, transmittance, counts):
-    """The shadow transmittance T = prod_s kt_s^n_s (n_s crossings of transparent surface s),
-    computed detached, given its derivative with respect to the kt: dT = T sum_s n_s dkt_s / kt_s.
-    Written as T prod_s (kt_s / detach(kt_s))^n_s, whose value is exactly T."""
-    if not dr.grad_enabled(surfaces.refractivity):
+
+def with_kt_derivative(surfaces, transmittance, crossed_slots):
+    """The shadow transmittance T = prod_i kt[slot_i] over the transparent crossings i of a
+    shadow ray (computed detached), given its derivative with respect to the kt:
+    T prod_i kt[slot_i] / detach(kt[slot_i]), whose value is exactly T.
+
+    ``crossed_slots``: a fixed-size record (one UInt32 per possible crossing, up to
+    max_shadow_crossings) of the slots crossed, NO_SLOT where there was no crossing;
+    None when the kt have no gradient (then T is returned as is)."""
+    if crossed_slots is None:
         return transmittance
-    for s, count in zip(surfaces.transparent_slots, counts):
-        kt = dr.gather(mi.Float, surfaces.refractivity, mi.UInt32(s))
-        transmittance = transmittance * dr.power(kt / dr.detach(kt), mi.Float(count))
+    for slot in crossed_slots:
+        crossed = slot != NO_SLOT
+        kt = dr.gather(mi.Float, surfaces.refractivity, slot, crossed)
+        ratio = kt / dr.select(crossed, dr.detach(kt), 1.0)
+        transmittance = transmittance * dr.select(crossed, ratio, 1.0)
     return transmittance
 
 
 class SceneTerms:
-    """What shading needs from the scene, read from its plugins at the start of a render:
-    the surfaces' parameters, the lights, the summed ambient light, the background."""
+    """What shading needs from the scene, read from its plugins at the start of a render
+    (each checked once against the interface of ``_protocol.py``): the surfaces'
+    parameters, the lights, the summed ambient light, the background.
+
+    The direct (non-ambient) lights stay a Python list: the shading kernel has one term
+    per light (scenes have a handful; the kernel grows with their number)."""
 
     def __init__(self, scene):
         self.surfaces = Surfaces(scene)
-        self.smooth_meshes = [shape for shape in scene.shapes()
-                              if shape.is_mesh() and shape.has_vertex_normals()]
-        lights = [e for e in scene.emitters() if isinstance(e, Light)]
-        backgrounds = [e for e in scene.emitters() if isinstance(e, Background)]
-        self.background = backgrounds[0].color if backgrounds else mi.Color3f(0.0)
+        lights, backgrounds = [], []
+        for emitter in scene.emitters():
+            (lights if check_emitter(emitter) == "light" else backgrounds).append(emitter)
+        self.background = backgrounds[0].background_color if backgrounds else mi.Color3f(0.0)
         self.ambient = mi.Color3f(0.0)
         for light in lights:
             if light.is_ambient:
@@ -47,39 +76,84 @@ class SceneTerms:
 
 
 class Surfaces:
-    """The parameters of every surface of a scene as arrays indexed by a *slot*.
-
-    A surface is one BSDF of the scene: a ``rayphong`` material or a
-    ``raytextured`` one. Instead of dispatching a virtual call per hit, the
-    integrator maps the hit's BSDF pointer (its Dr.Jit registry id) to a slot and
-    gathers the parameters from arrays built here from the materials' own
-    (differentiable) values, at the start of every render. Only the textures are
-    evaluated per surface, masked to the lanes that hit it.
-    """
+    """The parameters of every surface of a scene as arrays indexed by a *slot* (see the
+    module docstring): ``color`` (Color3f) and one mi.Float per name of FLOAT_PARAMS,
+    ``checker_size`` (None if no surface has a checkerboard), the distinct image
+    ``textures`` and, per slot, which of them apply (``texture_of_slot``)."""
 
     def __init__(self, scene):
-        bsdfs = {}
-        for shape in scene.shapes():
-            bsdf = shape.bsdf()
-            bsdfs.setdefault(dr.reinterpret_array(mi.UInt32, mi.BSDFPtr(bsdf))[0], bsdf)
-        ids = list(bsdfs)
-        table = np.zeros(max(ids, default=0) + 1, dtype=np.uint32)
-        table[ids] = np.arange(len(ids), dtype=np.uint32)
+        shapes = scene.shapes()
+        bsdfs = self.distinct_bsdfs(scene, shapes)
+        self.count = len(bsdfs)
+
+        # Materials: each distinct one once, with the slots that use it.
+        materials, material_of_slot = {}, np.zeros(len(bsdfs), np.int64)
+        for slot, bsdf in enumerate(bsdfs):
+            material_of_slot[slot] = materials.setdefault(id(bsdf.material),
+                                                          (len(materials), bsdf.material))[0]
+        materials = [material for _, material in materials.values()]
+        self.set_parameters(materials, material_of_slot)
+
+        sizes = np.array([float(bsdf.checker_size) for bsdf in bsdfs], np.float32)
+        self.checker_size = mi.Float(sizes) if np.any(sizes > 0) else None
+        self.set_textures(bsdfs)
+        # Whether any surface lets shadow rays through (kt > 0).
+        self.any_transparent = bool(np.any(self.host["refractivity"] > 0))
+
+    def distinct_bsdfs(self, scene, shapes):
+        """The scene's distinct BSDFs in slot order (increasing registry id), each checked
+        against the surface interface; sets ``slot_of_id``."""
+        if not shapes:
+            self.slot_of_id = dr.zeros(mi.UInt32, 1)
+            return []
+        ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr().bsdf()).numpy()
+        distinct, first = np.unique(ids, return_index=True)
+        table = np.zeros(int(distinct[-1]) + 1, dtype=np.uint32)
+        table[distinct] = np.arange(len(distinct), dtype=np.uint32)
         self.slot_of_id = mi.UInt32(table)
-        materials = [bsdf.material for bsdf in bsdfs.values()]
-        self.textures = [(mi.UInt32(slot), bsdf.textures)
-                         for slot, bsdf in enumerate(bsdfs.values()) if bsdf.textures]
-        if not materials:  # a scene with no objects: one slot of zeros, never gathered from
-            self.color = dr.zeros(mi.Color3f, 1)
+        return [check_surface(shapes[i].bsdf(), shapes[i]) for i in first]
+
+    def set_parameters(self, materials, material_of_slot):
+        """One array per parameter, by slot: host values uploaded once, then a scatter per
+        value whose gradient is enabled."""
+        rows = max(len(material_of_slot), 1)  # a scene with no objects: one slot of zeros
+        host = {"color": np.zeros((len(materials), 3), np.float32)}
+        host.update({name: np.zeros(len(materials), np.float32) for name in FLOAT_PARAMS})
+        attached = []
+        for m, material in enumerate(materials):
+            color = material.color
+            host["color"][m] = (color.x[0], color.y[0], color.z[0])
+            if dr.grad_enabled(color):
+                attached.append(("color", m, color))
             for name in FLOAT_PARAMS:
-                setattr(self, name, dr.zeros(mi.Float, 1))
-        else:
-            self.color = mi.Color3f(*(dr.concat([mi.Float(m.color[c]) for m in materials])
-                                      for c in range(3)))
-            for name in FLOAT_PARAMS:
-                setattr(self, name, dr.concat([mi.Float(getattr(m, name)) for m in materials]))
-        # Surfaces that let shadow rays through (kt > 0), by slot.
-        self.transparent_slots = [int(i) for i in np.flatnonzero(self.refractivity.numpy() > 0)]
+                value = getattr(material, name)
+                host[name][m] = value[0]
+                if dr.grad_enabled(value):
+                    attached.append((name, m, value))
+        by_slot = {name: np.zeros((rows,) + values.shape[1:], np.float32)
+                   for name, values in host.items()}
+        for name, values in host.items():
+            by_slot[name][:len(material_of_slot)] = values[material_of_slot]
+        self.host = by_slot
+        self.color = mi.Color3f(*(mi.Float(np.ascontiguousarray(by_slot["color"][:, c]))
+                                  for c in range(3)))
+        for name in FLOAT_PARAMS:
+            setattr(self, name, mi.Float(by_slot[name]))
+        for name, m, value in attached:
+            slots = mi.UInt32(np.flatnonzero(material_of_slot == m).astype(np.uint32))
+            dr.scatter(getattr(self, name), value, slots)
+
+    def set_textures(self, bsdfs):
+        """The distinct image textures and, for each position k in a surface's tuple of
+        image textures, the texture at that position by slot (its index + 1; 0: none)."""
+        textures, rows = {}, []
+        for slot, bsdf in enumerate(bsdfs):
+            for k, texture in enumerate(bsdf.image_textures):
+                if k == len(rows):
+                    rows.append(np.zeros(len(bsdfs), np.uint32))
+                rows[k][slot] = textures.setdefault(id(texture), (len(textures) + 1, texture))[0]
+        self.textures = [texture for _, texture in textures.values()]
+        self.texture_of_slot = [mi.UInt32(row) for row in rows]
 
     def slot(self, si, active):
         return self.slot_of(si.bsdf(), active)
@@ -92,10 +166,16 @@ class Surfaces:
         return dr.gather(mi.Float, getattr(self, name), slot, active)
 
     def base_color(self, si, slot, active):
-        """C at each hit: the material's color times the surface's textures."""
+        """C at each hit: the material's color times the surface's image textures (in
+        order), times its checkerboard."""
         color = dr.gather(mi.Color3f, self.color, slot, active)
-        for surface_slot, textures in self.textures:
-            mask = active & (slot == surface_slot)
-            for texture in textures:
+        for texture_of_slot in self.texture_of_slot:
+            which = dr.gather(mi.UInt32, texture_of_slot, slot, active)
+            for index, texture in enumerate(self.textures, start=1):
+                mask = active & (which == index)
                 color = dr.select(mask, color * texture.eval(si, mask), color)
+        if self.checker_size is not None:
+            size = dr.gather(mi.Float, self.checker_size, slot, active)
+            mask = active & (size > 0)
+            color = dr.select(mask, color * checker(si.uv, dr.select(mask, size, 1.0)), color)
         return color

@@ -21,7 +21,8 @@ Conventions, decided here once:
 import drjit as dr
 import mitsuba as mi
 
-from ._surfaces import SceneTerms, with_kt_derivative
+from ._lift import SmoothMeshes
+from ._surfaces import NO_SLOT, SceneTerms, with_kt_derivative
 from .phong import phong_local
 
 
@@ -92,10 +93,12 @@ class Tracer:
         self.max_shadow_crossings = max_shadow_crossings
         self.progress = None
         self.rays_per_generation = []  # of the last trace: how many rays each depth traced
+        self.smooth_meshes = SmoothMeshes()  # the terminator lift's table, kept across renders
 
     def trace(self, scene, ray):
         """The color of each ray of ``ray`` (one lane per ray) through its whole tree."""
         terms = SceneTerms(scene)
+        terms.smooth_meshes = self.smooth_meshes.update(scene)
         generations = []
         self.rays_per_generation = []
         for depth in range(self.max_depth + 1):
@@ -157,7 +160,7 @@ class Tracer:
         ks = surfaces.get("specular_mix", slot, hit)
         exponent = surfaces.get("phong_coeff", slot, hit)
         n, v = self.facing_normal(si, ray), -ray.d
-        lifted = self.lifted_point(terms.smooth_meshes, si, hit)
+        lifted = terms.smooth_meshes.lifted_point(si, hit)  # see _lift.py
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
@@ -166,62 +169,35 @@ class Tracer:
             result += dr.select(active, intensity * phong * transmittance, 0.0)
         return result
 
-    def lifted_point(self, smooth_meshes, si, active):
-        """Where shadow rays leave a smooth-shaded mesh near its terminator (None: no such mesh).
-
-        Where the shading normal faces a light but the flat facet that was hit does not,
-        a shadow ray leaving the facet would run through the mesh's own far side and
-        shadow a point that the contract says is lit (a convex object never shadows
-        itself). Such a ray starts instead from the hit point lifted off its facet onto
-        the smooth surface that the vertex normals describe (Hanika, "Hacking the shadow
-        terminator", Ray Tracing Gems II, 2021): the barycentric average of its
-        projections onto the tangent planes of the corners it lies below, then a ray
-        epsilon out along the shading normal.
-        """
-        if not smooth_meshes:
-            return None
-        lifted = mi.Point3f(si.p)
-        for mesh in smooth_meshes:
-            mask = active & (si.shape == mi.ShapePtr(mesh))
-            face = mesh.face_indices(si.prim_index, mask)
-            corners = [mesh.vertex_position(face[k], mask) for k in range(3)]
-            normals = [mesh.vertex_normal(face[k], mask) for k in range(3)]
-            e1, e2, q = corners[1] - corners[0], corners[2] - corners[0], si.p - corners[0]
-            d11, d12, d22 = dr.dot(e1, e1), dr.dot(e1, e2), dr.dot(e2, e2)
-            q1, q2 = dr.dot(q, e1), dr.dot(q, e2)
-            inv = dr.rcp(d11 * d22 - d12 * d12)
-            w1, w2 = (d22 * q1 - d12 * q2) * inv, (d11 * q2 - d12 * q1) * inv
-            p = mi.Point3f(si.p)
-            for w, corner, n in zip((1.0 - w1 - w2, w1, w2), corners, normals):
-                p -= w * dr.minimum(dr.dot(si.p - corner, n), 0.0) * n
-            lifted = dr.select(mask, p, lifted)
-        return lifted + (1.0 + dr.max(dr.abs(lifted))) * mi.math.RayEpsilon * si.sh_frame.n
-
     def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None):
         """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
         ray = si.spawn_ray(wi)
-        if lifted is not None:  # see lifted_point
+        if lifted is not None:  # see _lift.py
             terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
             ray.o = dr.select(terminator, lifted, ray.o)
         ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
         # The walk is detached: the parameters reach the transmittance only through the kt
         # of the surfaces crossed (*which* surfaces are crossed changes in jumps), and that
-        # derivative is attached in closed form afterwards (see ``with_kt_derivative``).
+        # derivative is attached in closed form afterwards (see ``with_kt_derivative``),
+        # from the slots of the crossings, recorded only when the kt have gradients.
+        record = dr.grad_enabled(surfaces.refractivity)
         with dr.suspend_grad():
             # A cheap any-hit test first: most shadow rays cross nothing, and then the
             # transmittance is exactly 1. Only the others walk their crossings.
             blocked = scene.ray_test(ray, active)
-            if not surfaces.transparent_slots:
+            if not surfaces.any_transparent:
                 return dr.select(blocked, 0.0, 1.0)  # nothing lets light through
-            transmittance, counts = self.crossings(scene, surfaces, ray, wi, active & blocked)
-        return with_kt_derivative(surfaces, transmittance, counts)
+            transmittance, crossed_slots = self.crossings(scene, surfaces, ray, active & blocked,
+                                                          record)
+        return with_kt_derivative(surfaces, transmittance, crossed_slots)
 
-    def crossings(self, scene, surfaces, ray, wi, active):
+    def crossings(self, scene, surfaces, ray, active, record=False):
         """(Product of kt over the surfaces ``ray`` crosses, 0 past max_shadow_crossings;
-        for each transparent surface, how many times the ray crossed it)."""
-        slots = surfaces.transparent_slots
+        with ``record``, the slot of each crossing that let the ray through, in order, as
+        max_shadow_crossings UInt32 (NO_SLOT past the last one), else None)."""
+        limit = self.max_shadow_crossings
 
-        def body(ray, transmittance, crossings, counts, active):
+        def body(ray, transmittance, crossings, slots, active):
             # Only the distance and the BSDF of each crossing matter: a preliminary
             # intersection is enough. The next ray starts just past the crossing.
             crossing = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
@@ -229,25 +205,23 @@ class Tracer:
             slot = surfaces.slot_of(crossing.shape.bsdf(), crossed)
             kt = surfaces.get("refractivity", slot, crossed)
             transmittance = dr.select(crossed, transmittance * kt, transmittance)
-            counts = tuple(count + dr.select(crossed & (slot == s), 1, 0)
-                           for count, s in zip(counts, slots))
-            crossings += 1
             onward = crossed & (kt > 0)
+            slots = tuple(dr.select(onward & (crossings == k), slot, recorded)
+                          for k, recorded in enumerate(slots))
+            crossings += 1
             # Past max_shadow_crossings the light counts as blocked.
-            transmittance = dr.select(onward & (crossings >= self.max_shadow_crossings),
-                                      0.0, transmittance)
+            transmittance = dr.select(onward & (crossings >= limit), 0.0, transmittance)
             p = ray(crossing.t)
             step = (1.0 + dr.max(dr.abs(p))) * mi.math.RayEpsilon
             ray = mi.Ray3f(dr.select(onward, p + step * ray.d, ray.o), ray.d,
                            dr.select(onward, ray.maxt - crossing.t - step, ray.maxt))
-            return ray, transmittance, crossings, counts, \
-                onward & (crossings < self.max_shadow_crossings)
+            return ray, transmittance, crossings, slots, onward & (crossings < limit)
 
-        state = (ray, mi.Float(1.0), mi.UInt32(0), tuple(mi.UInt32(0) for _ in slots),
-                 mi.Bool(active))
-        _, transmittance, _, counts, _ = dr.while_loop(state, lambda *s: s[-1], body,
-                                                       label="shadow ray")
-        return transmittance, counts
+        slots = tuple(mi.UInt32(NO_SLOT) for _ in range(limit if record else 0))
+        state = (ray, mi.Float(1.0), mi.UInt32(0), slots, mi.Bool(active))
+        _, transmittance, _, slots, _ = dr.while_loop(state, lambda *s: s[-1], body,
+                                                      label="shadow ray")
+        return transmittance, (slots if record else None)
 
     def spawn(self, generation, step):
         """Record the children of ``generation`` and return their rays (None: no children).

@@ -1,7 +1,8 @@
 """``raybackground``: the color of every ray, primary or secondary, that hits nothing.
 
 Parameters: ``color`` (Color3f, default black; differentiable). Read by the
-Whitted integrator; not a radiometric emitter.
+Whitted integrator as ``background_color`` (the background interface, see
+``_protocol.py``); not a radiometric emitter.
 """
 
 import drjit as dr
@@ -14,6 +15,10 @@ class Background(mi.Emitter):
         self.color = mi.Color3f(props.get("color", mi.ScalarColor3f(0.0)))
         self.parameters_changed([])
         self.m_flags = mi.EmitterFlags.Empty
+
+    @property
+    def background_color(self):
+        return self.color
 
     def traverse(self, callback):
         callback.put("color", self.color, mi.ParamFlags.Differentiable)

@@ -6,12 +6,21 @@ texture coordinates, which are its object-space (x, z) (see ``plane.py``)::
     checker(u, v) = 1  if floor(u / s) + floor(v / s) is even,  else 0
 
 so that the material's base color C times it gives C and black squares, as the
-format says. Parameters: ``size`` (float, > 0): the side s of a square, in the
-plane's object space.
+format says. :func:`checker` is the one implementation of this formula: the
+Whitted integrator calls it with each hit's square size gathered from its surface
+table, and this texture's ``eval`` with its own.
+
+Parameters: ``size`` (float, > 0): the side s of a square, in the plane's object space.
 """
 
 import drjit as dr
 import mitsuba as mi
+
+
+def checker(uv, size):
+    """1 on the even squares of side ``size``, 0 on the odd ones (see the module docstring)."""
+    cell = dr.floor(uv.x / size) + dr.floor(uv.y / size)
+    return 1.0 - (cell - 2.0 * dr.floor(cell * 0.5))  # parity: exact on integers
 
 
 class Checkerboard(mi.Texture):
@@ -21,12 +30,8 @@ class Checkerboard(mi.Texture):
         if not self.size > 0:
             raise ValueError("raychecker: size must be > 0")
 
-    def parity(self, uv):
-        cell = dr.floor(uv.x / self.size) + dr.floor(uv.y / self.size)
-        return cell - 2.0 * dr.floor(cell * 0.5)  # 0 for even, 1 for odd (exact on integers)
-
     def eval_1(self, si, active=True):
-        return 1.0 - self.parity(si.uv)
+        return checker(si.uv, self.size)
 
     def eval(self, si, active=True):
         return mi.Color3f(self.eval_1(si, active))

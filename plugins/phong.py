@@ -10,10 +10,11 @@ unit direction toward a light of intensity I::
 
 The highlight is not tinted by the base color C. :func:`phong_local` is the one
 implementation of this formula; the Whitted integrator calls it with the
-parameters of the surface it hit (gathered from every material at once, see
-``whitted.py``), and this BSDF's ``eval`` calls it in the local frame. ``eval``
-is the Phong term for one light, not a radiometric BSDF, and ``sample`` is never
-used: the integrator traces the mirror and refraction directions itself.
+parameters of the surface it hit, gathered from the surface table
+(``_surfaces.py``), which it builds from this plugin's members through the surface
+interface (``_protocol.py``). So the BSDF itself holds parameters only: it has no
+``eval``, ``sample`` or ``pdf`` (it is not a radiometric BSDF, and Mitsuba's own
+integrators cannot render it).
 
 Parameters (all differentiable; exposed by ``mi.traverse`` under these names):
 
@@ -22,9 +23,6 @@ Parameters (all differentiable; exposed by ``mi.traverse`` under these names):
 * ``phong_coeff`` (float, 1): the Phong exponent n >= 0
 * ``reflectivity`` (float, 0): kr; ``refractivity`` (float, 0): kt
 * ``ior`` (float, 1): index of refraction eta inside the object (1 outside)
-
-Also reachable as ``eval_attribute_3("ambient_reflectance")`` (ka C) and
-``eval_attribute_1("reflectivity" | "refractivity" | "ior")``.
 """
 
 import drjit as dr
@@ -62,43 +60,14 @@ class Phong(mi.BSDF):
             | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
         self.m_components = [self.m_flags]
 
+    # The surface interface (plugins/_protocol.py): a plain material is its own material,
+    # with no checkerboard and no image texture.
     @property
     def material(self):
         return self
 
-    textures = ()
-
-    def eval(self, ctx, si, wo, active=True):
-        return self.eval_local(si, wo, self.color, active)
-
-    def eval_local(self, si, wo, color, active=True):
-        """The Phong term in the local shading frame, for the base color ``color``."""
-        # Two-sided: in the local frame the facing normal is (0, 0, sign(wi.z)).
-        n = mi.Vector3f(0.0, 0.0, dr.select(mi.Frame3f.cos_theta(si.wi) < 0, -1.0, 1.0))
-        value = phong_local(n, si.wi, wo, color, self.diffuse_mix, self.specular_mix,
-                            self.phong_coeff)
-        return dr.select(active, value, 0.0)
-
-    def eval_attribute_3(self, name, si, active=True):
-        if name == "ambient_reflectance":
-            return self.ambient_mix * self.color
-        if name == "color":
-            return mi.Color3f(self.color)
-        return mi.Color3f(0.0)
-
-    def eval_attribute_1(self, name, si, active=True):
-        if name in ("reflectivity", "refractivity", "ior"):
-            return mi.Float(getattr(self, name))
-        return mi.Float(0.0)
-
-    def has_attribute(self, name, active=True):
-        return name in ("ambient_reflectance", "color", "reflectivity", "refractivity", "ior")
-
-    def sample(self, ctx, si, sample1, sample2, active=True):
-        return mi.BSDFSample3f(), mi.Color3f(0.0)  # never sampled: see the module docstring
-
-    def pdf(self, ctx, si, wo, active=True):
-        return mi.Float(0.0)
+    checker_size = 0.0
+    image_textures = ()
 
     def traverse(self, callback):
         callback.put("color", self.color, mi.ParamFlags.Differentiable)

@@ -7,8 +7,8 @@ For each camera ray it evaluates the format's deterministic ray tree::
 
     L_local = sum_ambient A ka C + sum_lights [N.L > 0] I(L) T(L) (kd C (N.L) + ks (R.V)^n)
 
-where ``L_local`` comes from the surface's ``rayphong`` / ``raytextured`` BSDF
-(``eval`` and ``eval_attribute_*``), I(L) from the ``raylight`` emitters and
+where ``L_local`` comes from the parameters of the surface's ``rayphong`` /
+``raytextured`` BSDF (read through ``_protocol.py``), I(L) from the ``raylight`` emitters and
 T(L), the shadow-ray transmittance, is the product of the refractivity kt of
 every surface the shadow ray crosses on its way to the light (the shaded
 surface itself excluded).
@@ -16,8 +16,10 @@ surface itself excluded).
 The pieces, one idea per module:
 
 * ``_camera.py``: which rays leave the camera for each pixel, and the box filter;
+* ``_protocol.py``: what the integrator reads from surfaces, lights, background;
 * ``_surfaces.py``: the surface table (every surface's parameters by slot), the
   lights and the background, read from the scene at the start of a render;
+* ``_lift.py``: where shadow rays leave smooth meshes near their terminator;
 * ``_tree.py``: the ray tree, traced generation by generation (a wavefront), with
   the conventions for directions, normals and entering/leaving decided there.
 

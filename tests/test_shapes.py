@@ -325,7 +325,7 @@ def test_smooth_mesh_does_not_shadow_itself_at_the_terminator():
     (light along -x) must show kd C N.L right up to the terminator, also where N.L is
     small: there the shading normal says "lit" while the flat facet under the hit point
     faces slightly away from the light, so a shadow ray leaving the facet runs into the
-    mesh's own far side unless the integrator takes care (whitted.py, lifted_point).
+    mesh's own far side unless the integrator takes care (plugins/_lift.py).
     The facet phase matters: this orientation (rotateY 20) showed the artifact."""
     steps = [("scale", (1.2, 1.5, 1.2)), ("rotateY", (20,))]
     m = _matrix(steps)
