@@ -3,8 +3,9 @@
     L_local = sum_ambient A ka C + sum_lights [N.L > 0] I (kd C (N.L) + ks (R.V)^n)
     R = 2 (N.L) N - L, (R.V)^n taken as 0 where R.V <= 0; the highlight is not tinted by C.
 
-First the BSDF on its own (eval and eval_attribute_* on directions chosen in numpy), then
-through whole rendered images of a sphere, every pixel against the formula in float64.
+First the model's function (phong_local, on directions chosen in numpy) and the BSDF's
+surface interface, then through whole rendered images of a sphere, every pixel against the
+formula in float64.
 """
 
 import numpy as np
@@ -27,37 +28,40 @@ def phong_bsdf(mitsuba):
                               "ior": 1.33})
 
 
-def _interaction(mi, wi):
-    si = mi.SurfaceInteraction3f()
-    si.wi = mi.Vector3f(*[np.ascontiguousarray(wi[:, k], np.float32) for k in range(3)])
-    si.sh_frame = mi.Frame3f(mi.Vector3f(0.0, 0.0, 1.0))
-    return si
+def _vectors(mi, a):
+    return mi.Vector3f(*[np.ascontiguousarray(a[:, k], np.float32) for k in range(3)])
 
 
-def test_bsdf_eval_is_the_local_phong_term_two_sided(mitsuba, phong_bsdf):
+def test_phong_local_is_the_per_light_term(mitsuba):
+    # phong_local, the one implementation the integrator shades with, against the formula
+    # in float64, on random directions (N facing V).
+    from raymitsuba.plugins.phong import phong_local
+
     mi = mitsuba
     rng = np.random.default_rng(5)
     v = normalize(rng.normal(size=(400, 3)))
     l = normalize(rng.normal(size=(400, 3)))
-    # Local frame: the shading normal is +z; two-sided, N faces V.
-    n = np.zeros_like(v)
-    n[:, 2] = np.where(v[:, 2] < 0, -1.0, 1.0)
+    n = normalize(rng.normal(size=(400, 3)))
+    n = np.where(np.sum(n * v, axis=-1, keepdims=True) < 0, -n, n)
     want = phong(n, v, l, (0.9, 0.5, 0.2), 0.7, 0.4, 5.0)
-    si = _interaction(mi, v)
-    wo = mi.Vector3f(*[np.ascontiguousarray(l[:, k], np.float32) for k in range(3)])
-    got = np.array(phong_bsdf.eval(mi.BSDFContext(), si, wo)).T  # (N, 3)
+    got = np.array(phong_local(_vectors(mi, n), _vectors(mi, v), _vectors(mi, l),
+                               mi.Color3f(0.9, 0.5, 0.2), 0.7, 0.4, 5.0)).T  # (N, 3)
     assert np.sum(want.sum(-1) == 0) > 100 and np.sum(want.sum(-1) > 0) > 100  # both cases
     np.testing.assert_allclose(got, want, rtol=0, atol=TOL)
 
 
-def test_bsdf_attributes(mitsuba, phong_bsdf):
-    mi = mitsuba
-    si = _interaction(mi, np.array([[0.0, 0.0, 1.0]]))
-    np.testing.assert_allclose(np.array(phong_bsdf.eval_attribute_3("ambient_reflectance", si)).ravel(),
-                               0.3 * np.array([0.9, 0.5, 0.2]), rtol=1e-6)
-    for name, value in (("reflectivity", 0.25), ("refractivity", 0.5), ("ior", 1.33)):
-        assert np.array(phong_bsdf.eval_attribute_1(name, si)).ravel() == \
-            pytest.approx([value], rel=1e-6), name
+def test_bsdf_is_a_surface_of_its_own_material(mitsuba, phong_bsdf):
+    # The surface interface (plugins/_protocol.py): its own material, no textures.
+    from raymitsuba.plugins import _protocol
+
+    assert _protocol.check_surface(phong_bsdf) is phong_bsdf
+    assert phong_bsdf.material is phong_bsdf
+    assert phong_bsdf.checker_size == 0.0 and phong_bsdf.image_textures == ()
+    np.testing.assert_allclose(np.array(phong_bsdf.color).ravel(), [0.9, 0.5, 0.2], rtol=1e-6)
+    for name, value in (("ambient_mix", 0.3), ("diffuse_mix", 0.7), ("specular_mix", 0.4),
+                        ("phong_coeff", 5.0), ("reflectivity", 0.25), ("refractivity", 0.5),
+                        ("ior", 1.33)):
+        assert np.array(getattr(phong_bsdf, name)).ravel() == pytest.approx([value], rel=1e-6), name
 
 
 def test_bsdf_parameters_are_traversable(mitsuba, phong_bsdf):

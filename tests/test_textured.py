@@ -1,6 +1,7 @@
-"""The ``raytextured`` BSDF (plugins/textured.py): a shared ``rayphong`` material whose base
-color is multiplied by an object's texture and checkerboard, C(si) = color * texture * checker;
-everything else is the material's."""
+"""The ``raytextured`` BSDF (plugins/textured.py): a shared ``rayphong`` material seen through
+an object's texture and checkerboard. It provides the surface interface (plugins/_protocol.py):
+the shared material itself, its image texture, its checker's square size. What the integrator
+makes of them, C(si) = color * texture * checker, is pinned in tests/test_surfaces.py."""
 
 import numpy as np
 import pytest
@@ -23,53 +24,35 @@ def bsdfs(mitsuba):
     return material, textured
 
 
-def interaction(mi, u, v):
-    """Hits at texture coordinates (u, v), seen head-on (local frame: normal +z)."""
-    si = mi.SurfaceInteraction3f()
-    si.uv = mi.Point2f(np.float32(u), np.float32(v))
-    si.wi = mi.Vector3f(0.0, 0.0, 1.0)
-    si.sh_frame = mi.Frame3f(mi.Vector3f(0.0, 0.0, 1.0))
-    return si
+def test_it_is_a_surface_of_the_shared_material(mitsuba, bsdfs):
+    from raymitsuba.plugins import _protocol
 
-
-# (0.1, 0.1) and (0.6, 0.6) are on even squares of side 0.5; (0.6, 0.1) on an odd one
-UV = ([0.1, 0.6, 0.6], [0.1, 0.6, 0.1])
-CHECKER = np.array([1.0, 1.0, 0.0])
-
-
-def test_base_color_is_color_times_texture_times_checker(mitsuba, bsdfs):
-    _, textured = bsdfs
-    got = np.array(textured.eval_attribute_3("color", interaction(mitsuba, *UV))).T
-    np.testing.assert_allclose(got, CHECKER[:, None] * np.multiply(C, TEXEL), rtol=1e-6)
-
-
-def test_ambient_reflectance_is_ka_times_the_textured_color(mitsuba, bsdfs):
-    _, textured = bsdfs
-    got = np.array(textured.eval_attribute_3("ambient_reflectance", interaction(mitsuba, *UV))).T
-    np.testing.assert_allclose(got, 0.5 * CHECKER[:, None] * np.multiply(C, TEXEL), rtol=1e-6)
-
-
-def test_scalar_attributes_are_the_materials(mitsuba, bsdfs):
-    _, textured = bsdfs
-    si = interaction(mitsuba, *UV)
-    for name, value in (("reflectivity", 0.25), ("refractivity", 0.5), ("ior", 1.4)):
-        assert np.array(textured.eval_attribute_1(name, si)).ravel()[0] == pytest.approx(value)
-        assert textured.has_attribute(name)
-
-
-def test_eval_is_the_materials_phong_term_with_the_textured_color(mitsuba, bsdfs):
-    mi = mitsuba
     material, textured = bsdfs
-    si = interaction(mi, *UV)
-    wo = mi.Vector3f(0.6, 0.0, 0.8)  # toward a light 37 degrees off the normal
-    n_dot_l = 0.8
-    highlight = 0.3 * max(2 * n_dot_l * 1.0 - 0.8, 0.0) ** 8.0  # ks (R.V)^n, R.V = 2(N.L)(N.V) - L.V
-    got = np.array(textured.eval(mi.BSDFContext(), si, wo)).T
-    want = 0.7 * CHECKER[:, None] * np.multiply(C, TEXEL) * n_dot_l + highlight
-    np.testing.assert_allclose(got, want, rtol=1e-5)
-    # where the texel is 1 everywhere it would be the material's own eval
-    plain = np.array(material.eval(mi.BSDFContext(), si, wo)).ravel()
-    np.testing.assert_allclose(plain, 0.7 * np.array(C) * n_dot_l + highlight, rtol=1e-5)
+    assert _protocol.check_surface(textured) is textured
+    assert textured.material is material  # the very object: values and gradients are shared
+
+
+def test_its_textures_are_the_image_then_the_checker_size(mitsuba, bsdfs):
+    mi = mitsuba
+    _, textured = bsdfs
+    assert textured.checker_size == 0.5
+    (image,) = textured.image_textures
+    si = mi.SurfaceInteraction3f()
+    si.uv = mi.Point2f(0.3, 0.7)
+    np.testing.assert_allclose(np.array(image.eval(si)).ravel(), TEXEL, rtol=1e-6)
+
+
+def test_without_textures_it_has_none(mitsuba, bsdfs):
+    material, _ = bsdfs
+    plain = mitsuba.load_dict({"type": "raytextured", "material": material})
+    assert plain.checker_size == 0.0 and plain.image_textures == ()
+
+
+def test_the_checker_must_be_a_raychecker(mitsuba, bsdfs):
+    material, _ = bsdfs
+    with pytest.raises(Exception, match="raychecker"):
+        mitsuba.load_dict({"type": "raytextured", "material": material,
+                           "checker": {"type": "checkerboard"}})
 
 
 def test_it_has_no_parameters_of_its_own(mitsuba, bsdfs):
