@@ -52,7 +52,10 @@ def load(source, width=512, height=512, spp=1, max_depth=5, srgb=False) -> Loade
     options = Options(width=int(width), height=int(height), spp=int(spp),
                       max_depth=int(max_depth), srgb=bool(srgb))
     scene_dict = translate(model, options)
-    scene = mi.load_dict(scene_dict)
+    # Serially: a mesh plugin's constructor waits on Dr.Jit (params.update() evaluates), and
+    # a thread waiting in Mitsuba's parallel loader runs the next pending constructor
+    # inside that wait, so 1,000 meshes nested 1,000 constructors deep (RecursionError).
+    scene = mi.load_dict(scene_dict, parallel=False)
     return Loaded(model, options, scene_dict, scene, mi.traverse(scene))
 
 
