@@ -3,14 +3,17 @@ indexed by a *slot*, and the scene's lights and background as shading needs them
 
 A surface is one BSDF of the scene (anything that provides the surface interface of
 ``_protocol.py``: ``rayphong``, ``raytextured``). Instead of a virtual call per hit,
-the integrator maps the hit's BSDF pointer (its Dr.Jit registry id) to a slot and
-gathers the parameters from arrays built here at the start of every render.
+the integrator maps the hit's *shape* pointer (its Dr.Jit registry id) to the slot of
+the shape's BSDF and gathers the parameters from arrays built here at the start of
+every render. (Not ``si.bsdf()``: that getter is a call over every shape whose code
+names each shape's BSDF, so the kernels would change with the scene's contents.)
 
 **Constant-size kernels.** Nothing here issues one JIT operation per surface, material
 or texture of the scene, so no kernel's size depends on how many there are:
 
-* slots: the distinct BSDF pointers of all shapes, read in one vectorized call, in
-  increasing registry id; a Python pass over the distinct surfaces only (no JIT work)
+* slots: the distinct BSDFs of all shapes (their pointers read in one vectorized
+  call), in increasing registry id, and a table from shape id to slot; a Python pass
+  over the distinct surfaces only (no JIT work)
   reads their materials, checker sizes and image textures;
 * parameter values: each material's (width-1, evaluated) values are read on the host,
   assembled into one numpy array per parameter and uploaded as one array. A value
@@ -34,6 +37,9 @@ from .checkerboard import checker
 from .phong import FLOAT_PARAMS
 
 NO_SLOT = 0xFFFFFFFF  # a slot index that names no surface (e.g. an unused crossing record)
+# Every table has at least this many rows: Dr.Jit folds a gather from a one-element array
+# into a broadcast, so a scene with one surface would otherwise get kernels of its own.
+MIN_ROWS = 2
 
 
 def with_kt_derivative(surfaces, transmittance, crossed_slots):
@@ -94,7 +100,8 @@ class Surfaces:
         materials = [material for _, material in materials.values()]
         self.set_parameters(materials, material_of_slot)
 
-        sizes = np.array([float(bsdf.checker_size) for bsdf in bsdfs], np.float32)
+        sizes = np.zeros(max(len(bsdfs), MIN_ROWS), np.float32)
+        sizes[:len(bsdfs)] = [float(bsdf.checker_size) for bsdf in bsdfs]
         self.checker_size = mi.Float(sizes) if np.any(sizes > 0) else None
         self.set_textures(bsdfs)
         # Whether any surface lets shadow rays through (kt > 0).
@@ -102,21 +109,23 @@ class Surfaces:
 
     def distinct_bsdfs(self, scene, shapes):
         """The scene's distinct BSDFs in slot order (increasing registry id), each checked
-        against the surface interface; sets ``slot_of_id``."""
+        against the surface interface; sets ``slot_of_shape`` (by shape registry id)."""
         if not shapes:
-            self.slot_of_id = dr.zeros(mi.UInt32, 1)
+            self.slot_of_shape = dr.zeros(mi.UInt32, MIN_ROWS)
             return []
-        ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr().bsdf()).numpy()
-        distinct, first = np.unique(ids, return_index=True)
-        table = np.zeros(int(distinct[-1]) + 1, dtype=np.uint32)
-        table[distinct] = np.arange(len(distinct), dtype=np.uint32)
-        self.slot_of_id = mi.UInt32(table)
+        pointers = scene.shapes_dr()
+        shape_ids = dr.reinterpret_array(mi.UInt32, pointers).numpy()
+        bsdf_ids = dr.reinterpret_array(mi.UInt32, pointers.bsdf()).numpy()
+        distinct, first, slot = np.unique(bsdf_ids, return_index=True, return_inverse=True)
+        table = np.zeros(max(int(shape_ids.max()) + 1, MIN_ROWS), dtype=np.uint32)
+        table[shape_ids] = slot.astype(np.uint32)
+        self.slot_of_shape = mi.UInt32(table)
         return [check_surface(shapes[i].bsdf(), shapes[i]) for i in first]
 
     def set_parameters(self, materials, material_of_slot):
         """One array per parameter, by slot: host values uploaded once, then a scatter per
         value whose gradient is enabled."""
-        rows = max(len(material_of_slot), 1)  # a scene with no objects: one slot of zeros
+        rows = max(len(material_of_slot), MIN_ROWS)  # rows past the last slot: zeros
         host = {"color": np.zeros((len(materials), 3), np.float32)}
         host.update({name: np.zeros(len(materials), np.float32) for name in FLOAT_PARAMS})
         attached = []
@@ -150,17 +159,16 @@ class Surfaces:
         for slot, bsdf in enumerate(bsdfs):
             for k, texture in enumerate(bsdf.image_textures):
                 if k == len(rows):
-                    rows.append(np.zeros(len(bsdfs), np.uint32))
+                    rows.append(np.zeros(max(len(bsdfs), MIN_ROWS), np.uint32))
                 rows[k][slot] = textures.setdefault(id(texture), (len(textures) + 1, texture))[0]
         self.textures = [texture for _, texture in textures.values()]
         self.texture_of_slot = [mi.UInt32(row) for row in rows]
 
-    def slot(self, si, active):
-        return self.slot_of(si.bsdf(), active)
-
-    def slot_of(self, bsdf, active):
-        """The slot of each lane's BSDF (a BSDFPtr: its values are Dr.Jit registry ids)."""
-        return dr.gather(mi.UInt32, self.slot_of_id, dr.reinterpret_array(mi.UInt32, bsdf), active)
+    def slot(self, shape, active):
+        """The slot of the BSDF of each lane's shape (a ShapePtr, e.g. ``si.shape``: its
+        values are Dr.Jit registry ids)."""
+        return dr.gather(mi.UInt32, self.slot_of_shape, dr.reinterpret_array(mi.UInt32, shape),
+                         active)
 
     def get(self, name, slot, active):
         return dr.gather(mi.Float, getattr(self, name), slot, active)

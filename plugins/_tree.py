@@ -127,7 +127,7 @@ class Tracer:
         si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
         hit = si.is_valid()
         surfaces = terms.surfaces
-        slot = surfaces.slot(si, hit)
+        slot = surfaces.slot(si.shape, hit)
         color = surfaces.base_color(si, slot, hit)
         local = self.shade(scene, terms, si, slot, color, ray)
         local = dr.select(hit, local, terms.background)
@@ -202,7 +202,7 @@ class Tracer:
             # intersection is enough. The next ray starts just past the crossing.
             crossing = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
             crossed = active & crossing.is_valid()
-            slot = surfaces.slot_of(crossing.shape.bsdf(), crossed)
+            slot = surfaces.slot(crossing.shape, crossed)
             kt = surfaces.get("refractivity", slot, crossed)
             transmittance = dr.select(crossed, transmittance * kt, transmittance)
             onward = crossed & (kt > 0)
