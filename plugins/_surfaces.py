@@ -11,9 +11,9 @@ names each shape's BSDF, so the kernels would change with the scene's contents.)
 **Constant-size kernels.** Nothing here issues one JIT operation per surface, material
 or texture of the scene, so no kernel's size depends on how many there are:
 
-* slots: the distinct BSDFs of all shapes (their pointers read in one vectorized
-  call), in increasing registry id, and a table from shape id to slot; a Python pass
-  over the distinct surfaces only (no JIT work)
+* slots: the distinct BSDFs of all shapes, in increasing registry id, and a table
+  from shape id (read in one vectorized call) to slot; a Python pass over the shapes
+  and the distinct surfaces (no JIT work)
   reads their materials, checker sizes and image textures;
 * parameter values: each material's (width-1, evaluated) values are read on the host,
   assembled into one numpy array per parameter and uploaded as one array. A value
@@ -113,14 +113,22 @@ class Surfaces:
         if not shapes:
             self.slot_of_shape = dr.zeros(mi.UInt32, MIN_ROWS)
             return []
-        pointers = scene.shapes_dr()
-        shape_ids = dr.reinterpret_array(mi.UInt32, pointers).numpy()
-        bsdf_ids = dr.reinterpret_array(mi.UInt32, pointers.bsdf()).numpy()
-        distinct, first, slot = np.unique(bsdf_ids, return_index=True, return_inverse=True)
+        # (Not ``shapes_dr().bsdf()``: that getter is a kernel, folded to a constant when
+        # all shapes share one BSDF, so its code would depend on the scene.)
+        shape_ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr()).numpy()
+        bsdfs, index_of_shape = {}, np.empty(len(shapes), np.int64)
+        for i, shape in enumerate(shapes):
+            bsdf = shape.bsdf()
+            index_of_shape[i] = bsdfs.setdefault(id(bsdf), (len(bsdfs), bsdf, shape))[0]
+        found = list(bsdfs.values())
+        registry_ids = [dr.reinterpret_array(mi.UInt32, mi.BSDFPtr(bsdf))[0] for _, bsdf, _ in found]
+        order = np.argsort(registry_ids, kind="stable")
+        slot_of_index = np.empty(len(found), np.uint32)
+        slot_of_index[order] = np.arange(len(found), dtype=np.uint32)
         table = np.zeros(max(int(shape_ids.max()) + 1, MIN_ROWS), dtype=np.uint32)
-        table[shape_ids] = slot.astype(np.uint32)
+        table[shape_ids] = slot_of_index[index_of_shape]
         self.slot_of_shape = mi.UInt32(table)
-        return [check_surface(shapes[i].bsdf(), shapes[i]) for i in first]
+        return [check_surface(found[i][1], found[i][2]) for i in order]
 
     def set_parameters(self, materials, material_of_slot):
         """One array per parameter, by slot: host values uploaded once, then a scatter per
