@@ -124,7 +124,7 @@ class Tracer:
     def step(self, scene, terms, ray, depth, children):
         """Intersect and shade ``ray``; with ``children``, also the children's weights and rays.
 """
-        si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
+        si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.AllNonDifferentiable, coherent=(depth == 0))
         hit = si.is_valid()
         surfaces = terms.surfaces
         slot = surfaces.slot(si.shape, hit)
