@@ -78,7 +78,8 @@ class TestCheck:
         assert result.stderr == ""
 
     def test_invalid_scene_exits_2_with_diagnostics_on_stderr(self, invalid):
-        result = run("check", str(invalid))
+        # forced: a `sphere` with operands would mark the file as MIT 6.837
+        result = run("check", "--dialect", "comp575", str(invalid))
         assert result.exit_code == 2
         assert result.stdout == ""
         assert f"{invalid}:1:8: error: `sphere` takes no operands, found 1" in result.stderr

@@ -123,7 +123,7 @@ def test_summaries_go_to_stdout_diagnostics_to_stderr_and_any_error_makes_it_fal
     assert echo.lines[1][1].startswith(f"{good}: ok\n")
 
     echo = Echo()
-    assert check_scenes([str(bad), str(good)], echo) is False
+    assert check_scenes([str(bad), str(good)], echo, dialect="comp575") is False
     err = [text for stream, text in echo.lines if stream == "stderr"]
     assert err[0].startswith(f"{bad}:1:8: error:") and err[1].startswith(f"{bad}:2:5: error:")
     assert err[2] == f"{bad}: invalid, 2 errors"
