@@ -51,8 +51,8 @@ def test_every_command_has_help():
     result = run("--help")
     assert result.exit_code == 0
     assert [line.split()[0] for line in result.stdout.split("Commands:")[1].strip().splitlines()] \
-        == ["check", "fit", "render"]
-    for command in ("check", "fit", "render"):
+        == ["check", "convert", "fit", "render"]
+    for command in ("check", "convert", "fit", "render"):
         assert run(command, "--help").exit_code == 0
         # -h in a fresh process: click caches a command's help option, so a test that ran the
         # command on its own (without the group's -h) would change the answer here
@@ -67,6 +67,7 @@ class TestCheck:
         assert result.exit_code == 0, result.output
         assert result.stdout.splitlines() == [
             f"{valid}: ok",
+            "  dialect    COMP 575",
             "  camera     eye (0, 2, 10)  lookat (0, 0, 0)  up (0, 1, 0)  fov 45",
             "  background (0, 0, 0)",
             "  objects    4 (2 sphere, 1 plane, 1 cone)",

@@ -80,6 +80,7 @@ def test_summarize_is_the_file_then_the_indented_lines():
         "light 0 0 0 ambient\n", file="x.ray"))
     assert text.splitlines() == [
         "x.ray: ok",
+        "  dialect    COMP 575",
         "  camera     eye (1, 2, 0)  lookat (0, 0, 0)  up (0, 1, 0)  fov 45",  # -0 shows as 0
         "  background (0.25, 0.5, 1)",
         "  objects    4 (2 sphere, 1 plane, 1 cone)",  # in the order of ObjectKind
