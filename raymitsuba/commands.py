@@ -137,6 +137,11 @@ MIT6837_COMMANDS: Dict[str, Command] = _table(
     Command("end", (), "close the mesh block"),
 )
 
+def command_table(dialect: str) -> Dict[str, Command]:
+    """The table of commands of ``dialect``."""
+    return MIT6837_COMMANDS if dialect == MIT6837 else COMP575_COMMANDS
+
+
 #: The material command of each dialect (its operands feed ``mat{i}.*``).
 MATERIAL_COMMAND = {COMP575: "material", MIT6837: "surface"}
 
