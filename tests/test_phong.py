@@ -10,7 +10,7 @@ through whole rendered images of a sphere, every pixel against the formula in fl
 import numpy as np
 import pytest
 
-from conftest import camera_rays, intersect_sphere, normalize, phong, render_ray
+from support import camera_rays, intersect_sphere, normalize, phong, render_ray
 
 # float32 evaluation of a few products, a dot product and a power of a value in (0, 1]:
 # relative error ~1e-6 (x n for the power); the values here are <= 2, so 2e-5 absolute

@@ -4,7 +4,7 @@ which id. The ids are the public parameter names (mat{i}, light{j}, background).
 import numpy as np
 import pytest
 
-from conftest import intersect_sphere, normalize
+from support import intersect_sphere, normalize
 
 
 @pytest.fixture(scope="module")
