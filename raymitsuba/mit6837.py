@@ -44,7 +44,8 @@ _COMMAND_WORDS = frozenset(_CANONICAL) | frozenset(_COMP575_ONLY) | _LATER
 _LIGHT_WORDS = frozenset({"ambient", "point", "directional", "spotlight"})
 #: The MIT 6.837 command a user of a COMP 575 word probably meant.
 _COUNTERPARTS = {"material": "surface", "triangle": "triangles"}
-_BLOCK_COMMANDS = frozenset({"v", "f", "surface", "end"})
+#: What a block may hold (a nested `triangles` has an error of its own).
+_BLOCK_COMMANDS = frozenset({"v", "f", "surface", "end", "triangles"})
 
 
 @dataclass

@@ -124,8 +124,9 @@ def summary_lines(scene: Scene) -> List[str]:
     if scene.dialect == MIT6837:
         size = (f"{scene.viewport[0]} x {scene.viewport[1]} (viewport)" if scene.viewport
                 else "512 x 512 (default; no viewport)")
+        blocks = len({m.block_line for m in scene.meshes})
         meshes = (f"{len(scene.meshes)} ({scene.triangle_count} triangles, "
-                  f"{len({m.block_line for m in scene.meshes})} blocks)")
+                  f"{blocks} block{'s' if blocks != 1 else ''})")
         lines[4:4] = [f"meshes     {meshes}"]
         lines[2:2] = [f"image      {size}"]
     return lines
