@@ -373,7 +373,7 @@ class TestMeshBlocks:
     def test_an_index_must_be_defined_before_the_face(self):
         assert errors(block("v 0 0 0", "f 0 1 2", "v 1 0 0", "v 0 1 0"))[0][2] == (
             "vertex index 1 is not defined in this block (defined so far: 0 to 0)")
-        assert error(block("f 0 0 0"))[2].endswith("(defined so far: none yet)")
+        assert errors(block("f 0 0 0"))[0][2].endswith("(defined so far: none yet)")
 
     def test_degenerate_faces_are_skipped_with_one_warning(self):
         scene = ok6837(block(*SQUARE, "f 0 1 2", "f 0 0 1", "f 1 2 1", "f 3 3 3 3", "f 0 2 3"))
