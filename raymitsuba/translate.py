@@ -10,7 +10,8 @@ command means (the parser already did). The dict is inspectable and is what
 * ``light{j}``: the j-th ``light`` line, a ``raylight`` emitter;
 * ``background``: a ``raybackground`` emitter;
 * ``sensor``, ``integrator`` (``raywhitted``);
-* shapes ``{kind}_{line}`` (``triangles_{k}`` for merged triangles) and
+* shapes ``{kind}_{line}`` (``{kind}_{line}_{n}`` for the n-th object when a MIT 6.837
+  line holds several; ``triangles_{k}`` for merged triangles, ``mesh{k}``) and
   textured surfaces ``surface{k}`` (``raytextured`` wrapping ``mat{i}``).
 
 Geometry choices (see the shape plugins for their tessellations):
@@ -75,12 +76,14 @@ def translate(model: Scene, options: Options | None = None, **kwargs) -> dict:
         scene[f"light{light.index}"] = emitter(light, mi)
     surfaces = Surfaces(options, mi)
     shapes, triangles = {}, {}
-    for obj in model.objects:
+    for i, obj in enumerate(model.objects):
         ref = surfaces.ref(obj)
         if obj.kind is ObjectKind.TRIANGLE:
             triangles.setdefault(ref["id"], []).append(obj)
         else:
-            shapes[f"{obj.kind.value}_{obj.line}"] = shape(obj, model, options, mi) | {"bsdf": ref}
+            name = f"{obj.kind.value}_{obj.line}"
+            name = f"{name}_{i}" if name in shapes else name  # MIT 6.837: several on a line
+            shapes[name] = shape(obj, model, options, mi) | {"bsdf": ref}
     for k, (surface_id, objs) in enumerate(triangles.items()):
         shapes[f"triangles_{k}"] = triangle_mesh(objs, mi) | {"bsdf": {"type": "ref", "id": surface_id}}
     shapes |= mesh_shapes(model, mi)
