@@ -55,6 +55,21 @@ def either(words: Sequence[str]) -> str:
     return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " or " + words[-1]
 
 
+_KINDS = {d: {k.value: k for k in kinds} for d, kinds in C.LIGHT_KINDS.items()}
+_KIND_LISTS = {d: either(list(kinds)) for d, kinds in _KINDS.items()}
+
+
+def _material_plan(command: C.Command):
+    """(token positions of the color, (token position, operand) of each other operand)."""
+    return (command.positions("color"),
+            tuple((k, o) for k, o in enumerate(command.operands, 1) if o.field != "color"))
+
+
+#: The plan of each dialect's material command, computed once.
+_MATERIAL_PLANS = {C.MATERIAL_COMMAND[d]: _material_plan(C.command_table(d)[C.MATERIAL_COMMAND[d]])
+                   for d in C.DIALECTS}
+
+
 class SceneBuilder:
     """One pass over one input in one dialect (see the module docstring)."""
 
@@ -76,6 +91,7 @@ class SceneBuilder:
         self.meshes: List[TriangleMesh] = []
         self.lights: List[Light] = []
         self.first_object_at: Optional[Tuple[int, int, str]] = None  # for the no-light warning
+        self._names = {name: command.names for name, command in self.table.items()}
         self._toks: List[str] = []
         self._cmd = ""
         self._ascii = True  # every token of the current command is ASCII
@@ -144,7 +160,7 @@ class SceneBuilder:
 
     def _operands(self) -> Optional[Tuple[float, ...]]:
         """All operands of a fixed-operand command, checked; None (reported) on error."""
-        names = self.table[self._cmd].names
+        names = self._names[self._cmd]
         toks = self._toks
         if len(toks) != len(names) + 1:
             self._count_ok(names)
@@ -241,8 +257,8 @@ class SceneBuilder:
 
     def _light(self) -> None:
         toks = self._toks
-        kinds = {k.value: k for k in C.LIGHT_KINDS[self.dialect]}
-        kind_list = either(list(kinds))
+        kinds = _KINDS[self.dialect]
+        kind_list = _KIND_LISTS[self.dialect]
         # Where is the kind? The first token after `light` that is not a number.
         kind_at = 4
         if len(toks) < 5 or toks[4].lower() not in _LIGHT_WORDS:
@@ -306,25 +322,24 @@ class SceneBuilder:
         if values is None:
             return
         command = self.table[self._cmd]
-        names = command.names
-        self._warn_negative(names, values, 1, f"`{self._cmd}`", only=_WARN_NEGATIVE_MATERIAL)
+        self._warn_negative(command.names, values, 1, f"`{self._cmd}`",
+                            only=_WARN_NEGATIVE_MATERIAL)
         fields: Dict[str, object] = {}
-        color = [0.0, 0.0, 0.0]
-        for k, (operand, value) in enumerate(zip(command.operands, values), 1):
+        color_at, scalars = _MATERIAL_PLANS[self._cmd]
+        for k, operand in scalars:
+            value = values[k - 1]
             if operand.field == "phong_coeff" and value < 0:
                 self._error_tok(k, f"the Phong coefficient `{operand.name}` must be >= 0, "
                                    f"found {fmt(value)}")
-            if operand.field == "ior" and value <= 0:
+            elif operand.field == "ior" and value <= 0:
                 what = "the ratio of indices of refraction" if operand.reciprocal \
                     else "the index of refraction"
                 self._error_tok(k, f"{what} `{operand.name}` must be > 0, found {fmt(value)}")
-                value = 1.0 if operand.reciprocal else value
-            if operand.field == "color":
-                color[operand.component] = value
-            else:
-                fields[operand.field] = operand.value(value)  # type: ignore[index]
+                value = 1.0
+            fields[operand.field] = operand.value(value)  # type: ignore[index]
+        color = tuple(values[k - 1] for k in color_at)
         ln, column, _ = self._where(0)
-        self.materials.append(Material(color=tuple(color), index=len(self.materials),  # type: ignore[arg-type]
+        self.materials.append(Material(color, index=len(self.materials),  # type: ignore[arg-type]
                                        line=ln, column=column, **fields))  # type: ignore[arg-type]
 
     # ---- the end -----------------------------------------------------------------

@@ -20,7 +20,7 @@ and ``background.color``. :class:`ParamKey` is their one parser.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Dict, Optional, Tuple
 
 from raymitsuba.lexer import COMP575, MIT6837
@@ -55,10 +55,10 @@ class Command:
     name: str  # canonical spelling
     operands: Tuple[Operand, ...] = ()
     meaning: str = ""
+    names: Tuple[str, ...] = field(init=False, repr=False, compare=False)  # operand names
 
-    @property
-    def names(self) -> Tuple[str, ...]:
-        return tuple(o.name for o in self.operands)
+    def __post_init__(self):
+        object.__setattr__(self, "names", tuple(o.name for o in self.operands))
 
     def positions(self, field: str) -> Tuple[int, ...]:
         """Token positions of the operands that feed ``field``, in component order."""

@@ -79,15 +79,15 @@ class Comp575Parser(SceneBuilder):
         handlers = self._handlers
         for ln, line in enumerate(lines, 1):
             # lexer.line_tokens(line), inlined: this loop runs once per line of the input
-            toks = line.split() if line.isascii() else line_tokens(line)
+            ascii_ = line.isascii()
+            toks = line.split() if ascii_ else line_tokens(line)
             if not toks:
                 continue
             if "#" in line:
                 toks = before_comment(toks)
                 if not toks:
                     continue
-            self._ln, self._line, self._toks = ln, line, toks
-            self._ascii = line.isascii()
+            self._ln, self._line, self._toks, self._ascii = ln, line, toks, ascii_
             entry = handlers.get(toks[0].lower())
             if entry is None:
                 self._unknown_command()
@@ -97,7 +97,10 @@ class Comp575Parser(SceneBuilder):
         return self._finish()
 
     def _where(self, index: int) -> Tuple[int, int, str]:
-        return self._ln, spans(self._line)[index][0] + 1, self._line
+        line = self._line
+        if index == 0:  # the command is the line's first token
+            return self._ln, len(line) - len(line.lstrip(" \t")) + 1, line
+        return self._ln, spans(line)[index][0] + 1, line
 
     def _where_end(self) -> Tuple[int, int, str]:
         return self._ln, spans(self._line)[len(self._toks) - 1][1] + 1, self._line
