@@ -25,7 +25,9 @@ Conventions, decided here once:
 * Materials are numbered in file order; ``Scene.materials[0]`` is the default
   material in force before the first ``material`` line, so the first
   ``material`` line is number 1. Lights are numbered from 1 in file order.
-* Source positions (``line``, ``column``) are 1-based.
+* Source positions (``line``, ``column``) are 1-based. ``Material.column``,
+  ``Light.column`` and ``Scene.background_at`` locate the command word, so that
+  fitted numbers can be written back (a MIT 6.837 line may hold several commands).
 * The camera's ``fov`` is the angle the file gives, about the axis it names
   (``fov_axis``: "y", vertical, in COMP 575; "x", horizontal, in MIT 6.837). The
   vertical angle the renderer needs depends on the image's aspect, so it is
