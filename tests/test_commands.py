@@ -64,3 +64,16 @@ def test_param_keys_parse_and_print(key, parsed):
 def test_bad_param_keys(key):
     with pytest.raises(ValueError, match="is not a parameter key"):
         C.ParamKey.parse(key)
+
+
+def test_the_format_reference_names_every_command_of_both_tables():
+    import os
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    with open(os.path.join(root, "docs", "format.md"), encoding="utf-8") as f:
+        text = f.read()
+    for dialect in C.DIALECTS:
+        for name in C.command_table(dialect):
+            assert f"`{name}" in text, name
+    for word in C.LATER_6837_COMMANDS:
+        assert f"`{word}`" in text
