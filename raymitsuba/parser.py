@@ -200,7 +200,7 @@ _MIT_MARKERS = re.compile(
     re.MULTILINE | re.IGNORECASE)
 _COMP_MARKERS = re.compile(
     r"^[ \t]*(material|plane|cone|triangle|translate|scale|rotate[xyz]|pop|reset|texture|"
-    r"checkerboard|cylinder(?=[ \t]*(?:#|$))|sphere(?=[ \t]*(?:#|$))|"
+    r"checkerboard|cylinder(?=[ \t]*(?:#|$))|sphere(?=[ \t]*(?:[#/]|$))|"
     r"light(?=[^\n#]*[ \t]spotlight(?:[ \t#]|$)))" + _END,
     re.MULTILINE | re.IGNORECASE)
 _NEXT_TOKEN = re.compile(r"[^ \t\n]+")

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 import stat
-from typing import Dict, Optional, Tuple, Union
+from typing import Dict, Optional, Union
 
 from raymitsuba.model import Texture
 

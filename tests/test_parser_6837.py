@@ -412,3 +412,13 @@ class TestMeshBlocks:
         lines += [f"f {i} {i + 1} {i + 2}" for i in range(n - 2)] * 2
         scene = ok6837(block(*lines))
         assert scene.triangle_count == 2 * (n - 2) and len(scene.meshes) == 1
+
+
+class TestDetectionEdges:
+    def test_a_sphere_with_a_slash_comment_then_operands_below(self):
+        assert detect_dialect(["sphere / a ball", "0 0 0 1"]) == "mit6837"
+        assert detect_dialect(["sphere / a ball", "plane"]) == "comp575"
+
+    def test_markers_must_start_a_line(self):
+        assert detect_dialect(["eye 0 0 9 # surface"]) == "comp575"
+        assert detect_dialect(["# surface 1 1 1", "/ triangles"]) == "comp575"
