@@ -135,17 +135,25 @@ def select_keys(model: Scene, requested: Optional[Sequence[str]]) -> List[str]:
             continue
         matches = [k for k in valid if fnmatch.fnmatchcase(k, item)]
         if not matches:
-            hint = ""
-            if item.startswith("mat0."):
-                hint = " (mat0, the default material, has no `material` line to write back to)"
-            elif item.startswith("background.") and model.background_at is None:
-                hint = " (the scene has no `background` line to write back to)"
-            raise FitError(f"unknown parameter `{item}`{hint}; valid keys: "
+            raise FitError(f"unknown parameter `{item}`{_why_not(model, item)}; valid keys: "
                            + (", ".join(valid) if valid else "none (no material or light lines)"))
         keys += [k for k in matches if k not in keys]
     if not keys:
         raise FitError("no parameters to fit")
     return keys
+
+
+def _why_not(model: Scene, item: str) -> str:
+    """Why the key ``item`` cannot be written back, when it names a line that is missing."""
+    try:
+        key = ParamKey.parse(item)
+    except ValueError:
+        return ""
+    if key.owner == "mat" and key.index == 0:
+        return " (mat0, the default material, has no `material` line to write back to)"
+    if key.owner == "background" and model.background_at is None:
+        return " (the scene has no `background` line to write back to)"
+    return ""
 
 
 def field_of(key: str) -> str:
