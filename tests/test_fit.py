@@ -281,3 +281,10 @@ class TestBothDialects:
             F.model_values(parse_text(MIT), ["mat1"])
         with pytest.raises(F.FitError, match="no light 7"):
             F.model_values(parse_text(MIT), ["light7.color"])
+
+    def test_two_surfaces_on_one_line(self):
+        text = "surface 1 1 1 1 1 0 1 0 0 1 surface 0.5 0.5 0.5 1 1 0 1 0 0 1\nsphere 0 0 0 1\n"
+        out = F.rewrite_scene(text, parse_text(text), {"mat2.color": (0.25, 0.5, 0.5),
+                                                       "mat1.diffuse_mix": 0.75})
+        assert out == ("surface 1 1 1 1 0.75 0 1 0 0 1 surface 0.25 0.5 0.5 1 1 0 1 0 0 1\n"
+                       "sphere 0 0 0 1\n")
