@@ -16,6 +16,11 @@ plugin name        kind       file
 ``raytriangles``   shape      ``triangles.py``: merged triangles
 =================  =========  ===============================================
 
+Modules whose names start with ``_`` are pieces shared by plugins, not plugins:
+``_mesh.py`` (tessellations to meshes), and the Whitted integrator's
+``_camera.py`` (camera rays, box filter), ``_surfaces.py`` (the surface table)
+and ``_tree.py`` (the ray tree).
+
 Import this package only after a Mitsuba variant is set (see raymitsuba.backend).
 """
 

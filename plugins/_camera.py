@@ -1,0 +1,52 @@
+"""Camera rays of the Whitted integrator: which rays leave the camera for each pixel.
+
+Conventions, decided here once:
+
+* Pixels are numbered row-major from the image's top-left corner; row 0 is the top.
+* Rays are **pixel-major**: all ``spp`` samples of pixel 0, then those of pixel 1...
+  (the image is the box-filtered average of each pixel's consecutive lanes).
+* One sample per pixel goes through the pixel centre; ``spp = n^2`` samples use the
+  centres of an n x n grid of strata; other counts are stratified in x with a
+  golden-ratio sequence in y.
+"""
+
+import drjit as dr
+import mitsuba as mi
+
+GOLDEN = 0.6180339887498949
+
+
+def stratum_offset(s, spp):
+    """Position in [0, 1)^2 of sample s of ``spp`` within its pixel (see the module docstring)."""
+    if spp == 1:
+        return mi.Point2f(0.5, 0.5)
+    n = int(round(spp ** 0.5))
+    if n * n == spp:
+        row = s // n
+        return mi.Point2f((mi.Float(s - row * n) + 0.5) / n, (mi.Float(row) + 0.5) / n)
+    x = (mi.Float(s) + 0.5) / spp
+    y = dr.fma(mi.Float(s), GOLDEN, 0.5)
+    return mi.Point2f(x, y - dr.floor(y))
+
+
+def camera_rays(sensor, width, height, spp):
+    """Camera rays, pixel-major (all samples of pixel 0, then pixel 1...); row 0 is the top."""
+    index = dr.arange(mi.UInt32, width * height * spp)
+    pixel = index // spp
+    offset = stratum_offset(index - pixel * spp, spp)
+    row = pixel // width
+    film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
+                          (mi.Float(row) + offset.y) / height)
+    ray, _ = sensor.sample_ray(time=0.0, sample1=0.5, sample2=film_pos, sample3=mi.Point2f(0.5))
+    return mi.Ray3f(ray)
+
+
+def box_filter(color, width, height, spp):
+    """The (H, W, 3) image: each pixel the average of its ``spp`` consecutive lanes."""
+    pixel = dr.arange(mi.UInt32, width * height) * spp
+    image = dr.gather(mi.Color3f, color, pixel)
+    for s in range(1, spp):
+        image += dr.gather(mi.Color3f, color, pixel + s)
+    if spp > 1:
+        image *= 1.0 / spp
+    return mi.TensorXf(dr.ravel(image), shape=(height, width, 3))

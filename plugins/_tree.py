@@ -1,0 +1,282 @@
+"""The ray tree of the Whitted integrator, traced generation by generation.
+
+All rays of one depth are intersected and shaded together; the reflected and
+refracted children of the lanes that need them (weight > 0) are compacted with
+``dr.compress`` into the next generation; the colors are finally summed from the
+deepest generation back to the first with gathers only (no atomics, no randomness).
+
+Conventions, decided here once:
+
+* ``ray.d`` points away from the camera (or the previous hit); V = -ray.d.
+  N is the shading normal flipped to face V; all directions are world space.
+* Entering or leaving an object is decided by the *geometric* normal, which
+  points to the object's outside (closed objects) or front side (planes and
+  triangles): a ray with d . n_geo < 0 enters (eta_i = 1, eta_t = eta),
+  otherwise it leaves (eta_i = eta, eta_t = 1). Media are not nested.
+* On total internal reflection the kt share follows the mirror direction.
+* Depth: the first generation is 0; generations 1 .. ``max_depth`` are bounces;
+  a ray beyond that adds nothing.
+"""
+
+import drjit as dr
+import mitsuba as mi
+
+from ._surfaces import SceneTerms, with_kt_derivative
+from .phong import phong_local
+
+
+def reflect(v, n):
+    """Mirror direction of v (pointing away from the surface) about the unit normal n."""
+    return 2.0 * dr.dot(n, v) * n - v
+
+
+def refract(v, n, eta_ratio):
+    """(Refracted direction, total internal reflection mask) by Snell's law.
+
+    v points away from the surface on the incident side, n is the unit normal on
+    that side (n . v > 0) and ``eta_ratio`` = eta_i / eta_t.
+    """
+    cos_i = dr.dot(n, v)
+    sin2_t = dr.square(eta_ratio) * (1.0 - dr.square(cos_i))
+    tir = sin2_t >= 1.0
+    cos_t = dr.safe_sqrt(1.0 - sin2_t)
+    return -eta_ratio * v + (eta_ratio * cos_i - cos_t) * n, tir
+
+
+class Generation:
+    """One depth of the ray tree, as the trace leaves it.
+
+    Per lane (one lane per ray of this depth): ``local`` (L_local, or the
+    background on a miss), the weights of the reflected and refracted children
+    and, where a child exists (``has_r`` / ``has_t``), its lane in the next
+    generation (``child_r`` / ``child_t``).
+    """
+
+    def __init__(self, local):
+        self.local = local
+        self.weight_r = self.child_r = self.has_r = None
+        self.weight_t = self.child_t = self.has_t = None
+
+    @property
+    def has_children(self):
+        return self.child_r is not None
+
+    def subtree_color(self, deeper):
+        """This generation's colors given the colors of the next one (None: no next one)."""
+        if deeper is None or not self.has_children:
+            return self.local
+        return self.local + self.weight_r * dr.gather(mi.Color3f, deeper, self.child_r, self.has_r) \
+            + self.weight_t * dr.gather(mi.Color3f, deeper, self.child_t, self.has_t)
+
+
+class Step:
+    """What one generation computes for its rays: the local colors and, unless it is
+    the deepest, the children's weights and rays (reflected and refracted, per lane)."""
+
+    def __init__(self, local, hit, weights=None, rays=None):
+        self.local, self.hit = local, hit
+        self.weight_r, self.weight_t = weights if weights else (None, None)
+        self.reflected, self.refracted = rays if rays else (None, None)
+
+
+class Tracer:
+    """Traces the ray tree of a batch of rays (see the module docstring).
+
+    ``max_depth``: bounces after the first generation; ``max_shadow_crossings``: a shadow
+    ray that crosses more transparent surfaces than this is taken as blocked;
+    ``progress``: optional callable(generations_done).
+    """
+
+    def __init__(self, max_depth=5, max_shadow_crossings=16):
+        self.max_depth = max_depth
+        self.max_shadow_crossings = max_shadow_crossings
+        self.progress = None
+        self.rays_per_generation = []  # of the last trace: how many rays each depth traced
+
+    def trace(self, scene, ray):
+        """The color of each ray of ``ray`` (one lane per ray) through its whole tree."""
+        terms = SceneTerms(scene)
+        generations = []
+        self.rays_per_generation = []
+        for depth in range(self.max_depth + 1):
+            self.rays_per_generation.append(dr.width(ray))
+            last = depth == self.max_depth
+            step = self.step(scene, terms, ray, depth, not last)
+            generation = Generation(step.local)
+            generations.append(generation)
+            if last:
+                break
+            ray = self.spawn(generation, step)
+            if self.progress is not None:
+                self.progress(depth + 1)
+            if ray is None:
+                break
+
+        color = None
+        for generation in reversed(generations):
+            color = generation.subtree_color(color)
+            dr.eval(color)  # once for all three channels: the next step gathers from each
+        return color
+
+    def step(self, scene, terms, ray, depth, children):
+        """Intersect and shade ``ray``; with ``children``, also the children's weights and rays.
+"""
+        si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.All, coherent=(depth == 0))
+        hit = si.is_valid()
+        surfaces = terms.surfaces
+        slot = surfaces.slot(si, hit)
+        color = surfaces.base_color(si, slot, hit)
+        local = self.shade(scene, terms, si, slot, color, ray)
+        local = dr.select(hit, local, terms.background)
+        if not children:
+            return Step(local, hit)
+        kr = surfaces.get("reflectivity", slot, hit)
+        kt = surfaces.get("refractivity", slot, hit)
+        eta = surfaces.get("ior", slot, hit)
+        v = -ray.d
+        n = self.facing_normal(si, ray)
+        entering = dr.dot(si.n, ray.d) < 0
+        refracted_d, tir = refract(v, n, dr.select(entering, dr.rcp(eta), eta))
+        weights = (kr + dr.select(tir, kt, 0.0), dr.select(tir, 0.0, kt))
+        rays = (si.spawn_ray(reflect(v, n)), si.spawn_ray(refracted_d))
+        return Step(local, hit, weights, rays)
+
+    def facing_normal(self, si, ray):
+        """The shading normal flipped to the side the ray comes from."""
+        n = si.sh_frame.n
+        return dr.select(dr.dot(n, ray.d) > 0, -n, n)
+
+    def shade(self, scene, terms, si, slot, color, ray):
+        """L_local at each hit: ambient term plus each light's shadowed Phong term."""
+        hit = si.is_valid()
+        surfaces, lights = terms.surfaces, terms.direct
+        result = terms.ambient * surfaces.get("ambient_mix", slot, hit) * color
+        if not lights:
+            return result
+        kd = surfaces.get("diffuse_mix", slot, hit)
+        ks = surfaces.get("specular_mix", slot, hit)
+        exponent = surfaces.get("phong_coeff", slot, hit)
+        n, v = self.facing_normal(si, ray), -ray.d
+        lifted = self.lifted_point(terms.smooth_meshes, si, hit)
+        for light in lights:
+            wi, dist, intensity = light.illuminate(si.p)
+            active = hit & (dr.dot(n, wi) > 0)
+            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, lifted)
+            phong = phong_local(n, v, wi, color, kd, ks, exponent)
+            result += dr.select(active, intensity * phong * transmittance, 0.0)
+        return result
+
+    def lifted_point(self, smooth_meshes, si, active):
+        """Where shadow rays leave a smooth-shaded mesh near its terminator (None: no such mesh).
+
+        Where the shading normal faces a light but the flat facet that was hit does not,
+        a shadow ray leaving the facet would run through the mesh's own far side and
+        shadow a point that the contract says is lit (a convex object never shadows
+        itself). Such a ray starts instead from the hit point lifted off its facet onto
+        the smooth surface that the vertex normals describe (Hanika, "Hacking the shadow
+        terminator", Ray Tracing Gems II, 2021): the barycentric average of its
+        projections onto the tangent planes of the corners it lies below, then a ray
+        epsilon out along the shading normal.
+        """
+        if not smooth_meshes:
+            return None
+        lifted = mi.Point3f(si.p)
+        for mesh in smooth_meshes:
+            mask = active & (si.shape == mi.ShapePtr(mesh))
+            face = mesh.face_indices(si.prim_index, mask)
+            corners = [mesh.vertex_position(face[k], mask) for k in range(3)]
+            normals = [mesh.vertex_normal(face[k], mask) for k in range(3)]
+            e1, e2, q = corners[1] - corners[0], corners[2] - corners[0], si.p - corners[0]
+            d11, d12, d22 = dr.dot(e1, e1), dr.dot(e1, e2), dr.dot(e2, e2)
+            q1, q2 = dr.dot(q, e1), dr.dot(q, e2)
+            inv = dr.rcp(d11 * d22 - d12 * d12)
+            w1, w2 = (d22 * q1 - d12 * q2) * inv, (d11 * q2 - d12 * q1) * inv
+            p = mi.Point3f(si.p)
+            for w, corner, n in zip((1.0 - w1 - w2, w1, w2), corners, normals):
+                p -= w * dr.minimum(dr.dot(si.p - corner, n), 0.0) * n
+            lifted = dr.select(mask, p, lifted)
+        return lifted + (1.0 + dr.max(dr.abs(lifted))) * mi.math.RayEpsilon * si.sh_frame.n
+
+    def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None):
+        """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
+        ray = si.spawn_ray(wi)
+        if lifted is not None:  # see lifted_point
+            terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
+            ray.o = dr.select(terminator, lifted, ray.o)
+        ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
+        # The walk is detached: the parameters reach the transmittance only through the kt
+        # of the surfaces crossed (*which* surfaces are crossed changes in jumps), and that
+        # derivative is attached in closed form afterwards (see ``with_kt_derivative``).
+        with dr.suspend_grad():
+            # A cheap any-hit test first: most shadow rays cross nothing, and then the
+            # transmittance is exactly 1. Only the others walk their crossings.
+            blocked = scene.ray_test(ray, active)
+            if not surfaces.transparent_slots:
+                return dr.select(blocked, 0.0, 1.0)  # nothing lets light through
+            transmittance, counts = self.crossings(scene, surfaces, ray, wi, active & blocked)
+        return with_kt_derivative(surfaces, transmittance, counts)
+
+    def crossings(self, scene, surfaces, ray, wi, active):
+        """(Product of kt over the surfaces ``ray`` crosses, 0 past max_shadow_crossings;
+        for each transparent surface, how many times the ray crossed it)."""
+        slots = surfaces.transparent_slots
+
+        def body(ray, transmittance, crossings, counts, active):
+            # Only the distance and the BSDF of each crossing matter: a preliminary
+            # intersection is enough. The next ray starts just past the crossing.
+            crossing = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
+            crossed = active & crossing.is_valid()
+            slot = surfaces.slot_of(crossing.shape.bsdf(), crossed)
+            kt = surfaces.get("refractivity", slot, crossed)
+            transmittance = dr.select(crossed, transmittance * kt, transmittance)
+            counts = tuple(count + dr.select(crossed & (slot == s), 1, 0)
+                           for count, s in zip(counts, slots))
+            crossings += 1
+            onward = crossed & (kt > 0)
+            # Past max_shadow_crossings the light counts as blocked.
+            transmittance = dr.select(onward & (crossings >= self.max_shadow_crossings),
+                                      0.0, transmittance)
+            p = ray(crossing.t)
+            step = (1.0 + dr.max(dr.abs(p))) * mi.math.RayEpsilon
+            ray = mi.Ray3f(dr.select(onward, p + step * ray.d, ray.o), ray.d,
+                           dr.select(onward, ray.maxt - crossing.t - step, ray.maxt))
+            return ray, transmittance, crossings, counts, \
+                onward & (crossings < self.max_shadow_crossings)
+
+        state = (ray, mi.Float(1.0), mi.UInt32(0), tuple(mi.UInt32(0) for _ in slots),
+                 mi.Bool(active))
+        _, transmittance, _, counts, _ = dr.while_loop(state, lambda *s: s[-1], body,
+                                                       label="shadow ray")
+        return transmittance, counts
+
+    def spawn(self, generation, step):
+        """Record the children of ``generation`` and return their rays (None: no children).
+
+        A lane has a reflected (refracted) child where its weight is > 0; the children
+        are compacted, reflected ones first, into the next generation's lanes."""
+        weight_r, weight_t = step.weight_r, step.weight_t
+        has_r, has_t = step.hit & (weight_r > 0), step.hit & (weight_t > 0)
+        dr.eval(generation.local, weight_r, weight_t, has_r, has_t, step.reflected, step.refracted)
+        index_r, index_t = dr.compress(has_r), dr.compress(has_t)
+        count_r, count_t = dr.width(index_r), dr.width(index_t)
+        if count_r + count_t == 0:
+            return None
+        generation.weight_r, generation.has_r = weight_r, has_r
+        generation.weight_t, generation.has_t = weight_t, has_t
+        generation.child_r = dr.prefix_sum(mi.UInt32(has_r))  # exclusive: rank among the lanes with a child
+        # The count is data, not a constant of the kernels: it changes from render to render.
+        first_t = dr.opaque(mi.UInt32, count_r)
+        generation.child_t = dr.prefix_sum(mi.UInt32(has_t)) + first_t
+        lane = dr.arange(mi.UInt32, count_r + count_t)
+        is_t = lane >= first_t
+        if count_r == 0 or count_t == 0:  # (a gather from an empty array is an error)
+            parent = index_t if count_r == 0 else index_r
+        else:  # not dr.concat: it would make count_r a constant of the kernel
+            parent = dr.select(is_t, dr.gather(mi.UInt32, index_t, lane - first_t, is_t),
+                               dr.gather(mi.UInt32, index_r, lane, ~is_t))
+        reflected, refracted = step.reflected, step.refracted
+        origin = dr.select(is_t, dr.gather(mi.Point3f, refracted.o, parent),
+                           dr.gather(mi.Point3f, reflected.o, parent))
+        direction = dr.select(is_t, dr.gather(mi.Vector3f, refracted.d, parent),
+                              dr.gather(mi.Vector3f, reflected.d, parent))
+        return mi.Ray3f(origin, direction)
