@@ -336,6 +336,10 @@ class SceneBuilder:
                     else "the index of refraction"
                 self._error_tok(k, f"{what} `{operand.name}` must be > 0, found {fmt(value)}")
                 value = 1.0
+            elif operand.reciprocal and not math.isfinite(operand.value(value)):
+                self._error_tok(k, f"`{operand.name}` {fmt(value)} is too small: its reciprocal "
+                                   f"is beyond the floating-point range")
+                value = 1.0
             fields[operand.field] = operand.value(value)  # type: ignore[index]
         color = tuple(values[k - 1] for k in color_at)
         ln, column, _ = self._where(0)

@@ -26,7 +26,7 @@ from typing import List, Optional, Tuple
 from raymitsuba import commands as C
 from raymitsuba.builder import SceneBuilder, number_problem
 from raymitsuba.diagnostics import did_you_mean, fmt
-from raymitsuba.geometry import similarity
+from raymitsuba.geometry import magnitude_if_usable, similarity
 from raymitsuba.lexer import COMP575, MIT6837, Token, stream_6837
 from raymitsuba.model import Camera, ObjectKind, Scene, SceneObject, TriangleMesh, Vec3
 
@@ -177,10 +177,14 @@ class Mit6837Parser(SceneBuilder):
         if r <= 0:
             self._error_tok(4, f"a sphere's radius `r` must be > 0, found {fmt(r)}")
             return
+        to_world = similarity((cx, cy, cz), r)
+        if magnitude_if_usable(to_world) is None:  # as a COMP 575 transform is checked
+            self._error_tok(4, f"a sphere's radius `r` of {fmt(r)} makes its transform overflow "
+                               f"or become singular in floating point")
+            return
         self._note_object()
-        ln = self._cur[0].line
-        self.objects.append(SceneObject(ObjectKind.SPHERE, similarity((cx, cy, cz), r),
-                                        len(self.materials) - 1, ln))
+        self.objects.append(SceneObject(ObjectKind.SPHERE, to_world, len(self.materials) - 1,
+                                        self._cur[0].line))
 
     # ---- mesh blocks -------------------------------------------------------------
 

@@ -21,6 +21,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from raymitsuba.convert import to_comp575
 from raymitsuba.model import RayError, Scene, Severity
 from raymitsuba.parser import COMMANDS, parse_file, parse_text
 
@@ -201,6 +202,11 @@ def check_outcome(data, base_dir=None, dialect="auto") -> None:
     if scene.viewport is not None:
         assert all(isinstance(n, int) and n >= 1 for n in scene.viewport)
     assert dialect == "auto" or scene.dialect == dialect
+    if scene.dialect == "mit6837":  # its conversion is a valid COMP 575 scene of the same size
+        converted = parse_text(to_comp575(scene), dialect="comp575")
+        assert converted.camera.fov == cam.vertical_fov(*scene.image_size())
+        assert len(converted.materials) == len(scene.materials)
+        assert len(converted.objects) == len(scene.objects) + scene.triangle_count
     assert all(isinstance(v, float) and math.isfinite(v) for v in numbers)
 
 

@@ -282,6 +282,9 @@ class TestSurfaces:
         line, column, message = error(f"surface 1 1 1 1 1 0 1 0 0 {index}\n")
         assert (line, column) == (1, 27) and "`index` must be > 0" in message
 
+    def test_an_index_whose_reciprocal_overflows(self):
+        assert error("surface 1 1 1 1 1 0 1 0 0 1e-320\n")[:2] == (1, 27)
+
     def test_negative_phong_exponent(self):
         assert "`ns` must be >= 0" in error("surface 1 1 1 1 1 0 -1 0 0 1\n")[2]
 
@@ -314,6 +317,10 @@ class TestSpheres:
     def test_radius_must_be_positive(self, radius):
         assert error(f"sphere 0 0 0 {radius}\n" + LIT) == (
             1, 14, f"a sphere's radius `r` must be > 0, found {radius}")
+
+    @pytest.mark.parametrize("radius", ["1e-120", "1e120"])
+    def test_a_radius_out_of_floating_point_range(self, radius):
+        assert "overflow or become singular" in error(f"sphere 0 0 0 {radius}\n" + LIT)[2]
 
     def test_no_light_warning(self):
         assert warnings("\n  sphere 0 0 0 1\n") == [
