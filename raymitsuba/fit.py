@@ -150,7 +150,7 @@ def _why_not(model: Scene, item: str) -> str:
     except ValueError:
         return ""
     if key.owner == "mat" and key.index == 0:
-        return " (mat0, the default material, has no `material` line to write back to)"
+        return " (mat0, the default material, has no `material` or `surface` line to write back to)"
     if key.owner == "background" and model.background_at is None:
         return " (the scene has no `background` line to write back to)"
     return ""
@@ -390,7 +390,7 @@ def place_of(model: Scene, key: str) -> Place:
     elif parsed.owner == "mat":
         material = _material(model, parsed)
         if material.line is None:
-            raise FitError(f"`{key}`: the default material has no `material` line")
+            raise FitError(f"`{key}`: the default material has no `material` or `surface` line")
         command = C.command_table(model.dialect)[C.MATERIAL_COMMAND[model.dialect]]
         line, column = material.line, material.column or 1
     else:

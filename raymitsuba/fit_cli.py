@@ -86,7 +86,7 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srg
     except fitting.FitError as e:
         fail(str(e))
     if not selected:
-        fail("nothing to fit: the scene has no material line used by an object and no light; "
+        fail("nothing to fit: the scene has no `material` (or `surface`) line used by an object and no light; "
              "name parameters with --params")
     truth_values = None
     if truth is not None:

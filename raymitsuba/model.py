@@ -126,7 +126,7 @@ class Material:
     reflectivity: float = 0.0
     refractivity: float = 0.0
     ior: float = 1.0
-    index: int = 0  # 0 is the default material; the first `material` line is 1
+    index: int = 0  # 0 is the default material; the first `material` (MIT 6.837: `surface`) line is 1
     line: Optional[int] = None
     column: Optional[int] = None  # of the command word (`material` or `surface`)
 
