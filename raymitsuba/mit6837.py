@@ -48,6 +48,16 @@ _COUNTERPARTS = {"material": "surface", "triangle": "triangles"}
 _BLOCK_COMMANDS = frozenset({"v", "f", "surface", "end", "triangles"})
 
 
+def _reads_as_float(text: str) -> bool:
+    """Whether ``float()`` reads ``text`` (nan and inf included: they are bad operands,
+    reported as such, not commands)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 @dataclass
 class _Block:
     """The open ``triangles`` block."""
@@ -97,7 +107,7 @@ class Mit6837Parser(SceneBuilder):
         for tok in tokens:
             if current and (tok.text.lower() in _COMMAND_WORDS or (
                     tok.line != current[-1].line and tok.text.lower() not in _LIGHT_WORDS
-                    and number_problem(tok.text) is not None)):
+                    and not _reads_as_float(tok.text))):
                 yield current
                 current = []
             current.append(tok)

@@ -150,6 +150,10 @@ class TestLexical:
         line, column, message = error(f"eye 0 {literal} 3\n")
         assert (line, column) == (1, 7) and message.startswith("expected a number for `y` of `eye`")
 
+    def test_nan_on_the_next_line_is_a_bad_operand(self):
+        assert error("eye 0 0\nnan\n")[2] == (
+            "expected a number for `z` of `eye`, found `nan` (nan and infinity are not allowed)")
+
     def test_unknown_word_suggests_a_command(self):
         assert error("surfce 1 1 1 1 1 0 1 0 0 1\n") == (
             1, 1, "unknown command `surfce`; did you mean `surface`?")
