@@ -5,7 +5,9 @@ materials (Phong highlight, mirror reflection, refraction with an index of
 refraction, checkerboard), so that POV-Ray traces the same ray tree; the
 images are close but not identical (POV-Ray's shading model differs in detail),
 which does not matter for timing. Point lights have no distance falloff in
-POV-Ray by default, as in the format.
+POV-Ray by default, as in the format. Both dialects export the same way (the
+camera's vertical angle comes from ``Camera.vertical_fov``; MIT 6.837 mesh blocks
+become one POV-Ray ``mesh`` per mesh of the model).
 """
 
 from __future__ import annotations
@@ -47,12 +49,13 @@ PRIMITIVES = {
 def export(scene: Scene, width: int, height: int) -> str:
     cam = scene.camera
     aspect = width / height
+    fov = cam.vertical_fov(width, height)
     lines = ["#version 3.7;", "global_settings { max_trace_level 6 assumed_gamma 1.0 ambient_light rgb 0 }",
              f"background {{ color rgb {vec(scene.background)} }}",
              # POV-Ray is left-handed: mirror x to keep the image the same way round.
              f"camera {{ perspective location {vec(cam.eye)} look_at {vec(cam.lookat)} "
              f"sky {vec(cam.up)} right <-{aspect:.9g}, 0, 0> "
-             f"angle {2 * np.degrees(np.arctan(np.tan(np.radians(cam.fov) / 2) * aspect)):.9g} }}"]
+             f"angle {2 * np.degrees(np.arctan(np.tan(np.radians(fov) / 2) * aspect)):.9g} }}"]
     ambient = np.zeros(3)
     for light in scene.lights:
         if light.kind is LightKind.AMBIENT:
@@ -75,4 +78,9 @@ def export(scene: Scene, width: int, height: int) -> str:
         else:
             head = PRIMITIVES[obj.kind]
         lines.append(f"{head} {texture(material, obj.checker)} {matrix(obj.to_world)} }}")
+    for mesh in scene.meshes:
+        v = mesh.vertices
+        faces = " ".join(f"triangle {{ {vec(v[i])}, {vec(v[j])}, {vec(v[k])} }}"
+                         for i, j, k in mesh.faces)
+        lines.append(f"mesh {{ {faces} {texture(scene.materials[mesh.material], None)} }}")
     return "\n".join(lines) + "\n"

@@ -1,11 +1,11 @@
 """raymitsuba: a differentiable renderer for the classic .RAY scene format, on Mitsuba 3."""
 
 from raymitsuba.model import (Camera, Diagnostic, Light, LightKind, Material, ObjectKind,
-                              RayError, Scene, SceneObject, Severity, Texture)
+                              RayError, Scene, SceneObject, Severity, Texture, TriangleMesh)
 
 __version__ = "0.1.0"
 __all__ = ["Camera", "Diagnostic", "Light", "LightKind", "Material", "ObjectKind", "RayError",
-           "Scene", "SceneObject", "Severity", "Texture",
+           "Scene", "SceneObject", "Severity", "Texture", "TriangleMesh",
            "parse", "parse_file", "parse_text", "load", "render", "translate", "Loaded"]
 
 

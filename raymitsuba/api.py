@@ -10,7 +10,11 @@ material's number in file order (``mat0`` is the default material) and field
 one of color, ambient_mix, diffuse_mix, specular_mix, phong_coeff,
 reflectivity, refractivity, ior; ``light{j}.color``, ``.position``,
 ``.direction``, ``.shape_coefficient`` with j counting ``light`` lines from 1;
-``background.color``.
+``background.color``. :class:`raymitsuba.commands.ParamKey` parses them.
+
+Both dialects load the same way (``dialect="auto"`` decides from the text; force it
+with ``"comp575"`` or ``"mit6837"``). The image size is ``width`` x ``height``; a
+size left out (None) comes from the MIT 6.837 ``viewport``, else 512.
 """
 
 from __future__ import annotations
@@ -35,21 +39,23 @@ class Loaded:
         return self.scene.integrator()
 
 
-def parse_any(source) -> Scene:
+def parse_any(source, dialect: str = "auto") -> Scene:
     from raymitsuba import parser
 
     if isinstance(source, Scene):
         return source
-    return parser.parse(source)
+    return parser.parse(source, dialect)
 
 
-def load(source, width=512, height=512, spp=1, max_depth=5, srgb=False) -> Loaded:
-    """Parse (a path, .RAY text or a Scene) and load it into Mitsuba."""
+def load(source, width=None, height=None, spp=1, max_depth=5, srgb=False,
+         dialect="auto") -> Loaded:
+    """Parse (a path, .RAY text or a Scene, in ``dialect``) and load it into Mitsuba."""
     from raymitsuba.backend import mitsuba
 
-    model = parse_any(source)
+    model = parse_any(source, dialect)
     mi = mitsuba()
-    options = Options(width=int(width), height=int(height), spp=int(spp),
+    width, height = model.image_size(width, height)
+    options = Options(width=width, height=height, spp=int(spp),
                       max_depth=int(max_depth), srgb=bool(srgb))
     scene_dict = translate(model, options)
     # Serially: a mesh plugin's constructor waits on Dr.Jit (params.update() evaluates), and

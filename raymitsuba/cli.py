@@ -1,4 +1,4 @@
-"""The ``raymitsuba`` command line (click): ``check``, ``render``, ``fit``.
+"""The ``raymitsuba`` command line (click): ``check``, ``render``, ``fit``, ``convert``.
 
 Every scene error is printed as ``FILE:LINE:COLUMN: error: ...`` and exits with
 status 2; nothing in the input produces a traceback.
@@ -11,7 +11,7 @@ import sys
 
 import click
 
-from raymitsuba.cli_common import EXIT_SCENE_ERROR
+from raymitsuba.cli_common import EXIT_SCENE_ERROR, dialect_option
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -22,11 +22,12 @@ def main():
 
 @main.command()
 @click.argument("scenes", nargs=-1, required=True, type=click.Path())
+@dialect_option
 @click.pass_context
-def check(ctx, scenes):
+def check(ctx, scenes, dialect):
     """Validate .RAY SCENES and print a short summary of each.
 
-    The summary (objects and lights by kind, materials, the world bounding box
+    The summary (the dialect, objects and lights by kind, materials, the world bounding box
     of the finite objects) goes to stdout; errors and warnings go to stderr as
     FILE:LINE:COLUMN: error|warning: message. Exit status 0 when every scene is
     valid, 2 when any has an error.
@@ -39,15 +40,17 @@ def check(ctx, scenes):
         # file names may carry undecodable bytes (surrogates): never fail to print them
         click.echo(text.encode(encoding, "backslashreplace").decode(encoding), err=err)
 
-    ctx.exit(0 if check_scenes(scenes, echo) else EXIT_SCENE_ERROR)
+    ctx.exit(0 if check_scenes(scenes, echo, dialect) else EXIT_SCENE_ERROR)
 
 
-# The render and fit commands live in modules of their own.
+# The render, fit and convert commands live in modules of their own.
+from raymitsuba.convert_cli import convert  # noqa: E402
 from raymitsuba.fit_cli import fit  # noqa: E402
 from raymitsuba.render_cli import render  # noqa: E402
 
 main.add_command(render)
 main.add_command(fit)
+main.add_command(convert)
 
 
 def run():

@@ -23,14 +23,22 @@ def report(diagnostics) -> None:
         click.echo(d.format(), err=True)
 
 
-def parse_or_exit(path: str):
-    """The scene parsed from ``path``; on errors, print its diagnostics and exit with
-    :data:`EXIT_SCENE_ERROR`."""
+#: ``--dialect``, for every command that reads a scene.
+dialect_option = click.option(
+    "--dialect", type=click.Choice(["auto", "comp575", "mit6837"]), default="auto",
+    show_default=True,
+    help="The .RAY dialect: auto (decided from the file's commands), comp575 or mit6837 "
+         "(the parent MIT 6.837 format).")
+
+
+def parse_or_exit(path: str, dialect: str = "auto"):
+    """The scene parsed from ``path`` in ``dialect``; on errors, print its diagnostics and
+    exit with :data:`EXIT_SCENE_ERROR`."""
     from raymitsuba import parser
     from raymitsuba.model import RayError
 
     try:
-        return parser.parse_file(path)
+        return parser.parse_file(path, dialect)
     except RayError as e:
         report(e.diagnostics)
         sys.exit(EXIT_SCENE_ERROR)

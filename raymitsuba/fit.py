@@ -38,12 +38,16 @@ color times its diffuse mix times the light's color): fitting all of them lowers
 the loss but need not recover each one; pick ``keys`` accordingly.
 
 **Writing back** (:func:`rewrite_scene`): the .RAY text with only the fitted
-numbers replaced, every other byte unchanged (comments, spacing, line ends).
-The operands are found from the parser's line numbers (``Material.line``,
-``Light.line``) and its own lexical rules (:data:`raymitsuba.parser.LINE_END`,
-:func:`raymitsuba.parser.token_spans`) applied to that one line; a number whose
-value did not change keeps its original spelling, a changed one is written as
-``f"{x:.6g}"``.
+numbers replaced, every other byte unchanged (comments, spacing, line ends), in
+either dialect. Each key is parsed by :class:`raymitsuba.commands.ParamKey`; the
+command it lives on is found from the model's positions (``Material.line`` /
+``.column``, ``Light.line`` / ``.column``, ``Scene.background_at``), the operand
+from the table of commands (:mod:`raymitsuba.commands`: which token feeds which
+field, and whether the file holds the value or its reciprocal -- MIT 6.837's
+``index`` is 1 / eta), and the token from the dialect's own lexical rules
+(:func:`raymitsuba.lexer.tokens_from`; a MIT 6.837 command's operands may run onto
+the next lines). A number whose value did not change keeps its original spelling, a
+changed one is written as ``f"{x:.6g}"``.
 """
 
 from __future__ import annotations
@@ -57,14 +61,15 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from raymitsuba import commands as C
 from raymitsuba.atomic import atomic_path
-from raymitsuba.model import LightKind, Material, Scene
-from raymitsuba.parser import LINE_END, token_spans
+from raymitsuba.commands import ParamKey
+from raymitsuba.lexer import LINE_END, tokens_from
+from raymitsuba.model import Material, Scene
 
 Value = Union[float, Tuple[float, ...]]
 
 MATERIAL_FIELDS = Material.FIELDS
-LIGHT_FIELDS = ("color", "position", "direction", "shape_coefficient")
 
 #: Lower bound of each field after every step (None: unbounded).
 LOWER_BOUNDS: Dict[str, Optional[float]] = {
@@ -73,18 +78,6 @@ LOWER_BOUNDS: Dict[str, Optional[float]] = {
     "position": None, "direction": None, "shape_coefficient": 0.0,
 }
 
-#: Index (token number on its line, the command being 0) of each field's first operand.
-_MATERIAL_TOKENS = {"color": (1, 2, 3), "ambient_mix": (4,), "diffuse_mix": (5,),
-                    "specular_mix": (6,), "phong_coeff": (7,), "reflectivity": (8,),
-                    "refractivity": (9,), "ior": (10,)}
-_LIGHT_TOKENS = {
-    ("color", None): (1, 2, 3),
-    ("position", LightKind.POINT): (5, 6, 7),
-    ("direction", LightKind.DIRECTIONAL): (5, 6, 7),
-    ("position", LightKind.SPOT): (5, 6, 7),
-    ("direction", LightKind.SPOT): (8, 9, 10),
-    ("shape_coefficient", LightKind.SPOT): (11,),
-}
 _LINE_END_KEPT = re.compile(f"({LINE_END.pattern})")  # re.split keeps the line ends
 
 
@@ -95,22 +88,26 @@ class FitError(ValueError):
 # -- which parameters ---------------------------------------------------------------------------
 def writable_keys(model: Scene) -> List[str]:
     """Every parameter key whose value has a place in the .RAY file: the fields of each
-    ``material`` line (mat1, mat2, ...) and of each ``light`` line, by kind."""
+    ``material`` / ``surface`` line (mat1, mat2, ...), of each ``light`` line by kind, and
+    the background's color if it has a line."""
     keys = [f"mat{m.index}.{name}" for m in model.materials if m.line is not None
             for name in MATERIAL_FIELDS]
     for light in model.lights:
-        keys.append(f"light{light.index}.color")
-        for name in LIGHT_FIELDS[1:]:
-            if (name, light.kind) in _LIGHT_TOKENS:
-                keys.append(f"light{light.index}.{name}")
+        keys += [f"light{light.index}.{name}" for name in C.light_fields(light.kind)]
+    if model.background_at is not None:
+        keys.append("background.color")
     return keys
+
+
+def used_materials(model: Scene) -> List[int]:
+    """The materials (indices) of the objects and meshes, sorted."""
+    return sorted({obj.material for obj in model.objects} | {m.material for m in model.meshes})
 
 
 def default_keys(model: Scene) -> List[str]:
     """The default set of fitted parameters (see the module docstring)."""
-    used = sorted({obj.material for obj in model.objects})
     keys = []
-    for index in used:
+    for index in used_materials(model):
         material = model.materials[index]
         if material.line is None:
             continue  # the default material: no line to write it back to
@@ -138,10 +135,7 @@ def select_keys(model: Scene, requested: Optional[Sequence[str]]) -> List[str]:
             continue
         matches = [k for k in valid if fnmatch.fnmatchcase(k, item)]
         if not matches:
-            hint = ""
-            if item.startswith("mat0."):
-                hint = " (mat0, the default material, has no `material` line to write back to)"
-            raise FitError(f"unknown parameter `{item}`{hint}; valid keys: "
+            raise FitError(f"unknown parameter `{item}`{_why_not(model, item)}; valid keys: "
                            + (", ".join(valid) if valid else "none (no material or light lines)"))
         keys += [k for k in matches if k not in keys]
     if not keys:
@@ -149,8 +143,28 @@ def select_keys(model: Scene, requested: Optional[Sequence[str]]) -> List[str]:
     return keys
 
 
+def _why_not(model: Scene, item: str) -> str:
+    """Why the key ``item`` cannot be written back, when it names a line that is missing."""
+    try:
+        key = ParamKey.parse(item)
+    except ValueError:
+        return ""
+    if key.owner == "mat" and key.index == 0:
+        return " (mat0, the default material, has no `material` or `surface` line to write back to)"
+    if key.owner == "background" and model.background_at is None:
+        return " (the scene has no `background` line to write back to)"
+    return ""
+
+
 def field_of(key: str) -> str:
-    return key.rsplit(".", 1)[-1]
+    return _key(key).field
+
+
+def _key(key: str) -> ParamKey:
+    try:
+        return ParamKey.parse(key)
+    except ValueError as e:
+        raise FitError(str(e)) from None
 
 
 # -- values ---------------------------------------------------------------------------------------
@@ -184,20 +198,18 @@ def model_values(model: Scene, keys: Sequence[str]) -> Dict[str, Value]:
     """The values of ``keys`` as written in ``model`` (e.g. a ground-truth scene)."""
     out: Dict[str, Value] = {}
     for key in keys:
-        owner, name = key.split(".", 1)
-        if owner.startswith("mat"):
-            index = int(owner[3:])
-            if index >= len(model.materials):
-                raise FitError(f"`{key}`: the scene has no material {index}")
-            value = getattr(model.materials[index], name)
+        parsed = _key(key)
+        name = parsed.field
+        if parsed.owner == "background":
+            value = model.background
+        elif parsed.owner == "mat":
+            material = _material(model, parsed)
+            value = getattr(material, name)
         else:
-            index = int(owner[5:])
-            if index > len(model.lights):
-                raise FitError(f"`{key}`: the scene has no light {index}")
-            light = model.lights[index - 1]
+            light = _light(model, parsed)
             value = getattr(light, "shape" if name == "shape_coefficient" else name)
             if value is None:
-                raise FitError(f"`{key}`: light {index} is a {light.kind.value} light "
+                raise FitError(f"`{key}`: light {parsed.index} is a {light.kind.value} light "
                                f"and has no {name}")
         out[key] = tuple(float(v) for v in value) if isinstance(value, tuple) else float(value)
     return out
@@ -343,19 +355,54 @@ def _format(x: float) -> str:
     return "0" if text == "-0" else text
 
 
-def token_indices(model: Scene, key: str) -> Tuple[int, Tuple[int, ...]]:
-    """(1-based line, token numbers) of the operands of ``key`` in the .RAY text."""
-    owner, name = key.split(".", 1)
-    if owner.startswith("mat"):
-        material = model.materials[int(owner[3:])]
+def _material(model: Scene, key: ParamKey) -> Material:
+    if key.index is None or key.index >= len(model.materials):
+        raise FitError(f"`{key}`: the scene has no material {key.index}")
+    if key.field not in MATERIAL_FIELDS:
+        raise FitError(f"`{key}`: a material has no {key.field}")
+    return model.materials[key.index]
+
+
+def _light(model: Scene, key: ParamKey):
+    if key.index is None or not 1 <= key.index <= len(model.lights):
+        raise FitError(f"`{key}`: the scene has no light {key.index}")
+    return model.lights[key.index - 1]
+
+
+@dataclass(frozen=True)
+class Place:
+    """Where the operands of a key are: the command's line and column, and the token
+    position of each component's operand with the operand (which may be a reciprocal)."""
+
+    line: int
+    column: int
+    operands: Tuple[Tuple[int, C.Operand], ...]
+
+
+def place_of(model: Scene, key: str) -> Place:
+    """Where ``key``'s operands are written in the .RAY text the model was parsed from."""
+    parsed = _key(key)
+    if parsed.owner == "background":
+        if model.background_at is None or parsed.field != "color":
+            raise FitError(f"`{key}`: the scene has no `background` line to write it to")
+        command = C.COMP575_COMMANDS["background"]
+        line, column = model.background_at
+    elif parsed.owner == "mat":
+        material = _material(model, parsed)
         if material.line is None:
-            raise FitError(f"`{key}`: the default material has no `material` line")
-        return material.line, _MATERIAL_TOKENS[name]
-    light = model.lights[int(owner[5:]) - 1]
-    kind = None if name == "color" else light.kind
-    if (name, kind) not in _LIGHT_TOKENS:
-        raise FitError(f"`{key}`: a {light.kind.value} light has no {name}")
-    return light.line, _LIGHT_TOKENS[(name, kind)]
+            raise FitError(f"`{key}`: the default material has no `material` or `surface` line")
+        command = C.command_table(model.dialect)[C.MATERIAL_COMMAND[model.dialect]]
+        line, column = material.line, material.column or 1
+    else:
+        light = _light(model, parsed)
+        positions = C.light_positions(light.kind, parsed.field)
+        if not positions:
+            raise FitError(f"`{key}`: a {light.kind.value} light has no {parsed.field}")
+        operands = C.LIGHT_COLOR if parsed.field == "color" else C.LIGHT_OPERANDS[light.kind]
+        chosen = [o for o in operands if o.field == parsed.field]
+        return Place(light.line, light.column or 1, tuple(zip(positions, chosen)))
+    return Place(line, column, tuple(zip(command.positions(parsed.field),
+                                         command.operand_for(parsed.field))))
 
 
 def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value]) -> Union[bytes, str]:
@@ -367,43 +414,46 @@ def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value
     is_bytes = isinstance(data, (bytes, bytearray))
     text = bytes(data).decode("utf-8", "surrogateescape") if is_bytes else data
     parts = _LINE_END_KEPT.split(text)  # line, end, line, end, ..., line
-    edits: Dict[int, Dict[int, str]] = {}
+    lines = parts[0::2]
+    edits: Dict[int, Dict[Tuple[int, int], str]] = {}  # line -> (start, end) -> new text
     for key, value in values.items():
-        line, tokens = token_indices(model, key)
+        place = place_of(model, key)
         components = value if isinstance(value, tuple) else (value,)
-        if len(components) != len(tokens):
-            raise FitError(f"`{key}`: expected {len(tokens)} value(s), got {len(components)}")
-        for token, component in zip(tokens, components):
+        if len(components) != len(place.operands):
+            raise FitError(f"`{key}`: expected {len(place.operands)} value(s), "
+                           f"got {len(components)}")
+        if not 1 <= place.line <= len(lines):
+            raise FitError(f"line {place.line} is not in the scene text")
+        tokens = list(tokens_from(lines, place.line, place.column, model.dialect))
+        for (position, operand), component in zip(place.operands, components):
             if not math.isfinite(component):
                 raise FitError(f"`{key}`: cannot write the non-finite value {component}")
-            edits.setdefault(line, {})[token] = component
+            if position >= len(tokens):
+                raise FitError(f"line {place.line} does not have operand {position}: "
+                               f"{lines[place.line - 1]!r}")
+            line, begin, end = tokens[position]
+            original = lines[line - 1][begin:end]
+            new = original if _same_float32(original, operand, component) \
+                else _format(operand.written(component))
+            edits.setdefault(line, {})[(begin, end)] = new
     for line, changes in edits.items():
-        index = 2 * (line - 1)
-        if index >= len(parts):
-            raise FitError(f"line {line} is not in the scene text")
-        source = parts[index]
-        spans = token_spans(source)
+        source = lines[line - 1]
         out, last = [], 0
-        for token in sorted(changes):
-            if token >= len(spans):
-                raise FitError(f"line {line} does not have operand {token}: {source!r}")
-            begin, end = spans[token]
-            original = source[begin:end]
-            new = _format(changes[token])
-            if _same_float32(original, changes[token]):
-                new = original
+        for (begin, end), new in sorted(changes.items()):
             out += [source[last:begin], new]
             last = end
         out.append(source[last:])
-        parts[index] = "".join(out)
+        parts[2 * (line - 1)] = "".join(out)
     result = "".join(parts)
     return result.encode("utf-8", "surrogateescape") if is_bytes else result
 
 
-def _same_float32(token: str, value: float) -> bool:
+def _same_float32(token: str, operand: C.Operand, value: float) -> bool:
+    """Whether the number ``token`` already means ``value`` (as float32, the renderer's
+    precision) for ``operand``."""
     try:
-        return np.float32(float(token)) == np.float32(value)
-    except ValueError:
+        return np.float32(operand.value(float(token))) == np.float32(value)
+    except (ValueError, ZeroDivisionError):
         return False
 
 

@@ -22,9 +22,9 @@ def fail(message: str, code: int = EXIT_SCENE_ERROR):
     cli_common.fail("raymitsuba fit", message, code)
 
 
-def parse_scene(path: str):
+def parse_scene(path: str, dialect: str = "auto"):
     """The parsed scene and its bytes (exit 2 with FILE:LINE:COL diagnostics on errors)."""
-    model = cli_common.parse_or_exit(path)
+    model = cli_common.parse_or_exit(path, dialect)
     try:
         with open(path, "rb") as f:
             data = f.read()
@@ -65,7 +65,8 @@ def show(value) -> str:
 @click.option("--srgb", is_flag=True,
               help="Decode an 8-bit target (and textures) from sRGB; show the plot's images in sRGB.")
 @click.option("-q", "--quiet", is_flag=True, help="Print only the final summary.")
-def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srgb, quiet):
+@cli_common.dialect_option
+def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srgb, quiet, dialect):
     """Fit parameters of the .RAY file SCENE so that its render matches TARGET.
 
     Minimises the mean squared error over pixels and channels (linear values) with
@@ -78,18 +79,18 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srg
     if plot is not None and os.path.splitext(plot)[1].lower() not in PLOT_FORMATS:
         raise click.BadParameter(f"{plot}: use one of {', '.join(PLOT_FORMATS)}",
                                  param_hint="--plot")
-    model, data = parse_scene(scene)
+    model, data = parse_scene(scene, dialect)
     report(model.warnings)
     try:
         selected = fitting.select_keys(model, None if keys is None else keys.split(","))
     except fitting.FitError as e:
         fail(str(e))
     if not selected:
-        fail("nothing to fit: the scene has no material line used by an object and no light; "
+        fail("nothing to fit: the scene has no `material` (or `surface`) line used by an object and no light; "
              "name parameters with --params")
     truth_values = None
     if truth is not None:
-        truth_model, _ = parse_scene(truth)
+        truth_model, _ = parse_scene(truth, dialect)
         try:
             truth_values = fitting.model_values(truth_model, selected)
         except fitting.FitError as e:

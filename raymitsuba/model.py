@@ -25,12 +25,22 @@ Conventions, decided here once:
 * Materials are numbered in file order; ``Scene.materials[0]`` is the default
   material in force before the first ``material`` line, so the first
   ``material`` line is number 1. Lights are numbered from 1 in file order.
-* Source positions (``line``) are 1-based.
+* Source positions (``line``, ``column``) are 1-based. ``Material.column``,
+  ``Light.column`` and ``Scene.background_at`` locate the command word, so that
+  fitted numbers can be written back (a MIT 6.837 line may hold several commands).
+* The camera's ``fov`` is the angle the file gives, about the axis it names
+  (``fov_axis``: "y", vertical, in COMP 575; "x", horizontal, in MIT 6.837). The
+  vertical angle the renderer needs depends on the image's aspect, so it is
+  computed when the image size is known, by :meth:`Camera.vertical_fov` -- the one
+  place that convention is decided.
+* A MIT 6.837 triangle mesh block is held in bulk (:class:`TriangleMesh`, one per
+  run of faces under one surface), not as one object per face.
 """
 
 from __future__ import annotations
 
 import enum
+import math
 from dataclasses import dataclass, field
 from typing import Optional, Tuple
 
@@ -91,8 +101,17 @@ class Camera:
     eye: Vec3 = (0.0, 0.0, 5.0)
     lookat: Vec3 = (0.0, 0.0, 0.0)
     up: Vec3 = (0.0, 1.0, 0.0)
-    fov: float = 45.0  # vertical field of view, degrees, 0 < fov < 180
+    fov: float = 45.0  # field of view, degrees, 0 < fov < 180, about fov_axis
     line: Optional[int] = None  # line of the last camera command, None if all defaults
+    fov_axis: str = "y"  # "y": fov is vertical (COMP 575); "x": horizontal (MIT 6.837)
+
+    def vertical_fov(self, width: int, height: int) -> float:
+        """The vertical field of view in degrees of a ``width`` x ``height`` image:
+        tan(v/2) = tan(fov/2) * height / width for a horizontal fov."""
+        if self.fov_axis == "y":
+            return self.fov
+        half = math.tan(math.radians(self.fov) / 2.0) * height / width
+        return math.degrees(2.0 * math.atan(half))
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,8 +126,9 @@ class Material:
     reflectivity: float = 0.0
     refractivity: float = 0.0
     ior: float = 1.0
-    index: int = 0  # 0 is the default material; the first `material` line is 1
+    index: int = 0  # 0 is the default material; the first `material` (MIT 6.837: `surface`) line is 1
     line: Optional[int] = None
+    column: Optional[int] = None  # of the command word (`material` or `surface`)
 
     FIELDS = ("color", "ambient_mix", "diffuse_mix", "specular_mix", "phong_coeff",
               "reflectivity", "refractivity", "ior")
@@ -130,6 +150,7 @@ class Light:
     position: Optional[Vec3] = None  # point and spotlight
     direction: Optional[Vec3] = None  # directional: direction of travel; spotlight: axis
     shape: Optional[float] = None  # spotlight exponent s >= 0
+    column: Optional[int] = None  # of the `light` word
 
 
 class ObjectKind(str, enum.Enum):
@@ -160,6 +181,22 @@ class SceneObject:
 
 
 @dataclass(frozen=True, slots=True)
+class TriangleMesh:
+    """Triangles of one MIT 6.837 mesh block under one surface, in world space.
+
+    ``vertices`` is the block's whole vertex list (shared by the block's meshes);
+    ``faces`` are (i, j, k) indices into it, a face's front side being
+    (p_j - p_i) x (p_k - p_i). Faces of more than three vertices are already fanned.
+    """
+
+    vertices: Tuple[Vec3, ...]
+    faces: Tuple[Tuple[int, int, int], ...]
+    material: int  # index into Scene.materials
+    line: int  # line of the run's first face
+    block_line: int  # line of the block's `triangles`
+
+
+@dataclass(frozen=True, slots=True)
 class Scene:
     file: str  # the name used in diagnostics ("<string>" for text)
     camera: Camera = field(default_factory=Camera)
@@ -168,3 +205,17 @@ class Scene:
     objects: Tuple[SceneObject, ...] = ()
     lights: Tuple[Light, ...] = ()
     warnings: Tuple[Diagnostic, ...] = ()
+    dialect: str = "comp575"  # "comp575" or "mit6837"
+    meshes: Tuple[TriangleMesh, ...] = ()
+    viewport: Optional[Tuple[int, int]] = None  # (width, height): MIT 6.837 `viewport`
+    background_at: Optional[Tuple[int, int]] = None  # (line, column) of the last `background`
+
+    @property
+    def triangle_count(self) -> int:
+        """Triangles of the mesh blocks."""
+        return sum(len(m.faces) for m in self.meshes)
+
+    def image_size(self, width: Optional[int] = None, height: Optional[int] = None):
+        """(width, height) of the image: each given size, else the viewport's, else 512."""
+        default = self.viewport or (512, 512)
+        return (int(width) if width else default[0], int(height) if height else default[1])

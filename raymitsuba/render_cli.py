@@ -8,7 +8,8 @@ import time
 import click
 
 from raymitsuba import images
-from raymitsuba.cli_common import EXIT_FAILURE, error_message, fail, parse_or_exit, report
+from raymitsuba.cli_common import (EXIT_FAILURE, dialect_option, error_message, fail,
+                                   parse_or_exit, report)
 
 COMMAND = "raymitsuba"
 
@@ -44,21 +45,24 @@ class Progress:
 @click.argument("scene", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
               help="Output image: .exr (linear float), .png/.jpg (8-bit), .npy (float32 H x W x 3).")
-@click.option("--width", default=512, show_default=True, type=click.IntRange(1, 16384))
-@click.option("--height", default=512, show_default=True, type=click.IntRange(1, 16384))
+@click.option("--width", default=None, type=click.IntRange(1, 16384),
+              help="Image width [default: the MIT 6.837 viewport's, else 512].")
+@click.option("--height", default=None, type=click.IntRange(1, 16384),
+              help="Image height [default: the MIT 6.837 viewport's, else 512].")
 @click.option("--spp", default=1, show_default=True, type=click.IntRange(1, 4096),
               help="Samples per pixel (1: the pixel centre; more: stratified, box filter).")
 @click.option("--max-depth", default=5, show_default=True, type=click.IntRange(0, 64),
               help="Bounces after the camera ray.")
 @click.option("--srgb", is_flag=True,
               help="Encode 8-bit output with the sRGB curve and decode 8-bit textures from it.")
-def render(scene, output, width, height, spp, max_depth, srgb):
+@dialect_option
+def render(scene, output, width, height, spp, max_depth, srgb, dialect):
     """Render the .RAY file SCENE to OUTPUT."""
     try:
         images.check_writable(output)
     except images.ImageError as e:
         raise click.BadParameter(str(e), param_hint="--output")
-    model = parse_or_exit(scene)
+    model = parse_or_exit(scene, dialect)
     report(model.warnings)
 
     from raymitsuba import api, backend

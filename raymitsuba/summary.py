@@ -10,7 +10,8 @@ every finite object under its (affine) ``to_world`` matrix ``M`` = [A | t]:
   sqrt(A_i0^2 + A_i2^2); so the half-extent is |A_i1| / 2 + sqrt(A_i0^2 + A_i2^2);
 * cone: the convex hull of that disk around the base centre t - A e_y / 2 and
   the apex t + A e_y / 2;
-* triangle: its three transformed corners.
+* triangle: its three transformed corners;
+* a MIT 6.837 mesh: the vertices its faces use (already in world space).
 
 Planes are infinite and have no box (``None``); :func:`scene_bounds` leaves them out.
 """
@@ -21,7 +22,10 @@ import math
 from collections import Counter
 from typing import List, Optional, Tuple
 
-from raymitsuba.model import LightKind, ObjectKind, RayError, Scene, SceneObject, Vec3
+from raymitsuba.commands import DIALECT_NAMES
+from raymitsuba.lexer import MIT6837
+from raymitsuba.model import (LightKind, ObjectKind, RayError, Scene, SceneObject, TriangleMesh,
+                              Vec3)
 from raymitsuba.parser import parse_file
 
 Box = Tuple[Vec3, Vec3]  # (lower corner, upper corner)
@@ -58,9 +62,19 @@ def object_bounds(obj: SceneObject) -> Optional[Box]:
     return tuple(lo), tuple(hi)  # type: ignore[return-value]
 
 
+def mesh_bounds(mesh: TriangleMesh) -> Box:
+    """The box of the vertices the mesh's faces use."""
+    used = {i for face in mesh.faces for i in face}
+    points = [mesh.vertices[i] for i in used]
+    lo = tuple(min(p[k] for p in points) for k in range(3))
+    hi = tuple(max(p[k] for p in points) for k in range(3))
+    return lo, hi  # type: ignore[return-value]
+
+
 def scene_bounds(scene: Scene) -> Optional[Box]:
     """The union of the boxes of the scene's finite objects; None if it has none."""
     boxes = [b for b in map(object_bounds, scene.objects) if b is not None]
+    boxes += [mesh_bounds(m) for m in scene.meshes]
     if not boxes:
         return None
     lo = tuple(min(b[0][i] for b in boxes) for i in range(3))
@@ -95,9 +109,11 @@ def summary_lines(scene: Scene) -> List[str]:
     if any(o.kind is ObjectKind.PLANE for o in scene.objects):
         bounds += "  (planes are infinite and left out)"
     declared = len(scene.materials) - 1
-    return [
+    fov = _number(cam.fov) + (" (horizontal)" if cam.fov_axis == "x" else "")
+    lines = [
+        f"dialect    {DIALECT_NAMES[scene.dialect]}",
         f"camera     eye {_vector(cam.eye)}  lookat {_vector(cam.lookat)}  "
-        f"up {_vector(cam.up)}  fov {_number(cam.fov)}",
+        f"up {_vector(cam.up)}  fov {fov}",
         f"background {_vector(scene.background)}",
         f"objects    {_counts((o.kind for o in scene.objects), list(ObjectKind))}",
         f"lights     {_counts((li.kind for li in scene.lights), list(LightKind))}",
@@ -105,6 +121,15 @@ def summary_lines(scene: Scene) -> List[str]:
         f"bounds     {bounds}",
         f"warnings   {len(scene.warnings)}",
     ]
+    if scene.dialect == MIT6837:
+        size = (f"{scene.viewport[0]} x {scene.viewport[1]} (viewport)" if scene.viewport
+                else "512 x 512 (default; no viewport)")
+        blocks = len({m.block_line for m in scene.meshes})
+        meshes = (f"{len(scene.meshes)} ({scene.triangle_count} triangles, "
+                  f"{blocks} block{'s' if blocks != 1 else ''})")
+        lines[4:4] = [f"meshes     {meshes}"]
+        lines[2:2] = [f"image      {size}"]
+    return lines
 
 
 def summarize(scene: Scene) -> str:
@@ -112,16 +137,16 @@ def summarize(scene: Scene) -> str:
     return "\n".join([f"{scene.file}: ok"] + ["  " + line for line in summary_lines(scene)])
 
 
-def check_scenes(paths, echo) -> bool:
+def check_scenes(paths, echo, dialect: str = "auto") -> bool:
     """Parse every file of ``paths``; print summaries and diagnostics; True if all are valid.
 
-    ``echo(text, err=False)`` prints a line (``click.echo``): summaries to stdout,
+    ``dialect`` is passed to the parser. ``echo(text, err=False)`` prints a line (``click.echo``): summaries to stdout,
     diagnostics to stderr. Nothing but :class:`RayError` is expected from the parser.
     """
     all_valid = True
     for path in paths:
         try:
-            scene = parse_file(path)
+            scene = parse_file(path, dialect)
         except RayError as exc:
             for diagnostic in exc.diagnostics:
                 echo(diagnostic.format(), err=True)

@@ -10,7 +10,8 @@ command means (the parser already did). The dict is inspectable and is what
 * ``light{j}``: the j-th ``light`` line, a ``raylight`` emitter;
 * ``background``: a ``raybackground`` emitter;
 * ``sensor``, ``integrator`` (``raywhitted``);
-* shapes ``{kind}_{line}`` (``triangles_{k}`` for merged triangles) and
+* shapes ``{kind}_{line}`` (``{kind}_{line}_{n}`` for the n-th object when a MIT 6.837
+  line holds several; ``triangles_{k}`` for merged triangles, ``mesh{k}``) and
   textured surfaces ``surface{k}`` (``raytextured`` wrapping ``mat{i}``).
 
 Geometry choices (see the shape plugins for their tessellations):
@@ -19,7 +20,12 @@ Geometry choices (see the shape plugins for their tessellations):
   without mirroring (exact), else a ``rayellipsoid`` mesh;
 * cylinder, cone: ``raycylinder`` / ``raycone`` meshes;
 * plane: ``rayplane``, rings centred under the camera out past the horizon;
-* triangles: one ``raytriangles`` mesh per surface (material and texture).
+* triangles: one ``raytriangles`` mesh per surface (material and texture);
+* MIT 6.837 mesh blocks: one ``raytriangles`` mesh ``mesh{k}`` per mesh of the model,
+  its corners gathered in bulk with numpy (:func:`mesh_shapes`).
+
+The camera's vertical field of view for the image's aspect comes from
+``Camera.vertical_fov`` (the MIT 6.837 fov is horizontal).
 
 Tessellation density follows the object's projected size: a curved object whose
 bounding sphere spans r pixels gets m = pi sqrt(r / (2 e)) segments around, so its
@@ -70,14 +76,17 @@ def translate(model: Scene, options: Options | None = None, **kwargs) -> dict:
         scene[f"light{light.index}"] = emitter(light, mi)
     surfaces = Surfaces(options, mi)
     shapes, triangles = {}, {}
-    for obj in model.objects:
+    for i, obj in enumerate(model.objects):
         ref = surfaces.ref(obj)
         if obj.kind is ObjectKind.TRIANGLE:
             triangles.setdefault(ref["id"], []).append(obj)
         else:
-            shapes[f"{obj.kind.value}_{obj.line}"] = shape(obj, model, options, mi) | {"bsdf": ref}
+            name = f"{obj.kind.value}_{obj.line}"
+            name = f"{name}_{i}" if name in shapes else name  # MIT 6.837: several on a line
+            shapes[name] = shape(obj, model, options, mi) | {"bsdf": ref}
     for k, (surface_id, objs) in enumerate(triangles.items()):
         shapes[f"triangles_{k}"] = triangle_mesh(objs, mi) | {"bsdf": {"type": "ref", "id": surface_id}}
+    shapes |= mesh_shapes(model, mi)
     # Textured surfaces reference the materials and are referenced by the shapes.
     return scene | surfaces.dicts | shapes
 
@@ -91,7 +100,7 @@ def sensor(model, options, mi):
     camera = model.camera
     return {
         "type": "perspective",
-        "fov": camera.fov, "fov_axis": "y",  # the format's fov is vertical
+        "fov": camera.vertical_fov(options.width, options.height), "fov_axis": "y",
         "near_clip": NEAR_CLIP, "far_clip": FAR_CLIP,
         # Mitsuba's look_at: image right = view x up, image top toward up; row 0 at the top.
         "to_world": mi.ScalarTransform4f().look_at(origin=camera.eye, target=camera.lookat,
@@ -166,7 +175,7 @@ def segments(obj, model, options, radius):
     center = m[:3, 3]
     extent = radius * np.linalg.norm(m[:3, :3], 2)  # world bounding-sphere radius
     distance = max(np.linalg.norm(center - np.array(model.camera.eye)) - extent, 1e-3 * extent)
-    tan_half = math.tan(math.radians(model.camera.fov) / 2.0)
+    tan_half = math.tan(math.radians(model.camera.vertical_fov(options.width, options.height)) / 2.0)
     pixels = extent / distance / tan_half * options.height / 2.0
     wanted = math.pi * math.sqrt(max(pixels, 1.0) / (2.0 * SILHOUETTE_ERROR_PX))
     count = int(min(max(math.ceil(wanted), MIN_SEGMENTS), MAX_SEGMENTS))
@@ -214,3 +223,18 @@ def triangle_mesh(objs, mi) -> dict:
     texcoords = np.concatenate(texcoords).astype(np.float32)
     return {"type": "raytriangles", "positions": mi.Float(positions.ravel()),
             "texcoords": mi.Float(texcoords.ravel())}
+
+
+def mesh_shapes(model: Scene, mi) -> dict:
+    """A ``raytriangles`` shape per MIT 6.837 mesh (world-space corners, faces as written)."""
+    shapes = {}
+    for k, mesh in enumerate(model.meshes):
+        vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        corners = vertices[np.asarray(mesh.faces, dtype=np.int64)]  # (faces, 3, 3)
+        texcoords = np.broadcast_to(TRIANGLE_UV, (len(mesh.faces), 3, 2))
+        shapes[f"mesh{k}"] = {
+            "type": "raytriangles",
+            "positions": mi.Float(corners.astype(np.float32).ravel()),
+            "texcoords": mi.Float(texcoords.astype(np.float32).ravel()),
+            "bsdf": {"type": "ref", "id": f"mat{mesh.material}"}}
+    return shapes

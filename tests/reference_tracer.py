@@ -1,7 +1,6 @@
 """A tiny, independent, pure-numpy Whitted ray tracer for the test suite.
 
-It implements the contract (``/work/shared/ray-format.md``, ``docs/format.md``) for a
-subset of the format -- spheres, horizontal planes (optionally checkered), ambient,
+It implements the format (``docs/format.md``) for a subset of it -- spheres, horizontal planes (optionally checkered), ambient,
 point and directional lights -- in float64, sharing no code with the renderer. The
 renderer's image of the same scene must agree with it (see test_whitted.py).
 

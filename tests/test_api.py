@@ -120,3 +120,44 @@ def test_render_spp_override():
     b = np.array(raymitsuba.render(four))
     assert a.tobytes() == b.tobytes()
     assert not np.array_equal(a, np.array(raymitsuba.render(one)))  # edge pixels differ
+
+
+# -- the MIT 6.837 dialect ----------------------------------------------------------------------
+MIT = ("viewport 12 8\nlight 1 1 1 point 0 2 9\nsurface 0.5 0.5 1 0.2 0.8 0 1 0 0 0.5\n"
+       "sphere 0 0 0 2\ntriangles v -3 -3 -1 v 3 -3 -1 v 0 3 -1 f 0 1 2 end\n")
+
+
+def test_load_takes_the_dialect_and_the_viewport(mitsuba):
+    loaded = raymitsuba.load(MIT)
+    assert loaded.model.dialect == "mit6837"
+    assert (loaded.options.width, loaded.options.height) == (12, 8)
+    assert np.array(raymitsuba.render(loaded)).shape == (8, 12, 3)
+    assert (raymitsuba.load(MIT, width=6).options.width, raymitsuba.load(MIT, width=6).options.height) == (6, 8)
+    assert raymitsuba.load("sphere\n").options.width == 512
+    with pytest.raises(RayError):
+        raymitsuba.load(MIT, dialect="comp575")
+
+
+def test_mit_6837_parameters(mitsuba):
+    params = raymitsuba.load(MIT, width=4, height=4).params
+    assert float(np.array(params["mat1.ior"]).ravel()[0]) == pytest.approx(2.0)  # 1 / index
+    assert "background.color" in params
+
+
+def test_the_povray_export_reads_both_dialects():
+    import os
+    import sys
+
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                                    "benchmarks"))
+    from povray import export
+
+    from raymitsuba.parser import parse_text
+
+    mit = export(parse_text(MIT), 12, 8)
+    assert mit.count("mesh {") == 1 and mit.count("triangle {") == 1 and "sphere {" in mit
+    # the vertical angle of the horizontal fov 30, turned back into POV-Ray's horizontal angle
+    assert "angle 30 }" in mit
+    comp = export(parse_text("fov 45\nsphere\nlight 1 1 1 ambient\n"), 12, 8)
+    horizontal = 2 * math.degrees(math.atan(math.tan(math.radians(22.5)) * 12 / 8))
+    assert f"angle {horizontal:.9g} }}" in comp

@@ -4,7 +4,7 @@ color of every ray that hits nothing."""
 import numpy as np
 import pytest
 
-from conftest import render_ray
+from support import render_ray
 
 
 def test_color_defaults_to_black_and_is_a_differentiable_parameter(mitsuba):

@@ -5,7 +5,7 @@ when it is odd. Only planes declared after ``checkerboard s`` (s > 0) are checke
 import numpy as np
 import pytest
 
-from conftest import camera_rays, normalize, render_ray, rotation, scaling, stack, translation
+from support import camera_rays, normalize, render_ray, rotation, scaling, stack, translation
 
 EYE, LOOKAT = (0.0, 2.0, 5.0), (0.0, -1.0, 0.0)
 

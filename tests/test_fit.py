@@ -225,3 +225,66 @@ class TestFit:
             F.fit(loaded, np.zeros((8, 9, 3)), ["mat1.diffuse_mix"], iters=1)
         with pytest.raises(F.FitError, match="unknown parameter"):
             F.fit(loaded, np.zeros((8, 8, 3)), ["mat1.nope"], iters=1)
+
+
+# -- both dialects ------------------------------------------------------------------------------
+MIT = ("# MIT 6.837 / index is n_outside / n_inside\r\n"
+       "background 0.1 0.2 0.3\r\n"
+       "light 1 1 1 point 0 4 6\r\n"
+       "surface 0.9 0.9 1 0.1 0.2 0.6 40\r\n"
+       "   0.1 0.8 0.5   / glass, written across lines\r\n"
+       "sphere 0 0 0 1\r\n"
+       "triangles\r\nv 0 0 -2\r\nv 1 0 -2\r\nv 0 1 -2\r\n"
+       "surface 1 0 0 0.2 0.8 0 1 0 0 1\r\nf 0 1 2\r\nend\r\n")
+
+
+class TestBothDialects:
+    def test_mit_6837_keys_count_surfaces(self):
+        model = parse_text(MIT)
+        keys = F.writable_keys(model)
+        assert {"mat1.ior", "mat2.color", "light1.position", "background.color"} <= set(keys)
+        assert "mat3.color" not in keys
+        assert F.default_keys(model)[:1] == ["mat1.color"]
+        assert any(k.startswith("mat2.") for k in F.default_keys(model))  # the mesh's surface
+
+    def test_the_fitted_index_is_written_back_as_one_over_eta(self):
+        model = parse_text(MIT)
+        assert model.materials[1].ior == 2.0
+        out = F.rewrite_scene(MIT, model, {"mat1.ior": 1.6, "mat1.refractivity": 0.75,
+                                           "mat1.specular_mix": 0.6})
+        assert out == MIT.replace("   0.1 0.8 0.5   /", "   0.1 0.75 0.625   /")
+        assert parse_text(out).materials[1].ior == pytest.approx(1.6)
+
+    def test_an_unchanged_index_keeps_its_spelling(self):
+        model = parse_text(MIT)
+        assert F.rewrite_scene(MIT, model, {"mat1.ior": 2.0}) == MIT
+
+    def test_the_background_is_written_back_in_both_dialects(self):
+        out = F.rewrite_scene(MIT, parse_text(MIT), {"background.color": (0.5, 0.2, 0.25)})
+        assert "background 0.5 0.2 0.25\r\n" in out
+        comp = "fov 30\n  background\t0 0 0 # sky\nsphere\n"
+        out = F.rewrite_scene(comp, parse_text(comp), {"background.color": (0.1, 0, 0.2)})
+        assert out == "fov 30\n  background\t0.1 0 0.2 # sky\nsphere\n"
+        assert F.model_values(parse_text(comp), ["background.color"]) == {
+            "background.color": (0.0, 0.0, 0.0)}
+
+    def test_no_background_line_no_background_key(self):
+        model = parse_text("sphere\n")
+        assert "background.color" not in F.writable_keys(model)
+        with pytest.raises(F.FitError, match="no `background` line"):
+            F.select_keys(model, ["background.color"])
+        with pytest.raises(F.FitError, match="no `background` line"):
+            F.rewrite_scene("sphere\n", model, {"background.color": (1, 1, 1)})
+
+    def test_bad_keys_are_fit_errors(self):
+        with pytest.raises(F.FitError, match="is not a parameter key"):
+            F.model_values(parse_text(MIT), ["mat1"])
+        with pytest.raises(F.FitError, match="no light 7"):
+            F.model_values(parse_text(MIT), ["light7.color"])
+
+    def test_two_surfaces_on_one_line(self):
+        text = "surface 1 1 1 1 1 0 1 0 0 1 surface 0.5 0.5 0.5 1 1 0 1 0 0 1\nsphere 0 0 0 1\n"
+        out = F.rewrite_scene(text, parse_text(text), {"mat2.color": (0.25, 0.5, 0.5),
+                                                       "mat1.diffuse_mix": 0.75})
+        assert out == ("surface 1 1 1 1 0.75 0 1 0 0 1 surface 0.25 0.5 0.5 1 1 0 1 0 0 1\n"
+                       "sphere 0 0 0 1\n")

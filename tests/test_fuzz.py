@@ -1,6 +1,9 @@
 """Property tests of the parser: whatever the input, the outcome is a Scene or a RayError.
 
-Three generators: token soup drawn from the format's vocabulary plus junk,
+Both dialects. For MIT 6.837: token soup of its vocabulary with operands broken across
+lines and mesh blocks with indices in and out of range, valid 6.837 scenes cut and
+mutated anywhere, and random text read with the dialect forced. For COMP 575, three
+generators: token soup drawn from the format's vocabulary plus junk,
 mutations of valid scenes, and raw bytes / raw text. For every example the
 parser must either return a :class:`Scene` whose numbers are all finite, or
 raise a :class:`RayError` with at least one error, every diagnostic located
@@ -18,6 +21,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from raymitsuba.convert import to_comp575
 from raymitsuba.model import RayError, Scene, Severity
 from raymitsuba.parser import COMMANDS, parse_file, parse_text
 
@@ -55,6 +59,29 @@ triangle 0 0 0 1 0 0 0 1 0
 texture none
 """,
     'texture "t.png"  # quoted\r\nROTATEZ 90\r\nCone\r\nLIGHT 1 1 1 Point 0 0 0\r\n',
+    """\
+# MIT 6.837 / with comments
+viewport 32 24
+eye 0 1 9  lookat 0 0 0  up 0 1 0  fov 40
+background 0.1 0.1 0.2
+light 0.2 0.2 0.2 ambient
+light 1 1 1 point 3 4
+  5
+light 1 1 1 directional 0 -1 -1
+surface 1 0 0 0.1 0.9 0.3 20
+        0.2 0.5 0.666
+sphere 0 0 0 1
+triangles
+  v -2 -1 -2  v 2 -1 -2
+  v 2 -1 2
+  v -2 -1 2
+  f 0 1 2 3
+  surface 0 1 0 0.2 0.8 0 1 0 0 1
+  f 2 1 0
+  f 3 3 1
+end
+sphere 1 1 1 0.5 # last
+""",
 ]
 
 WORDS = [c for name in COMMANDS for c in (name, name.upper(), name.lower())] + [
@@ -140,10 +167,10 @@ def mutated_scenes(draw):
     return text
 
 
-def check_outcome(data, base_dir=None) -> None:
+def check_outcome(data, base_dir=None, dialect="auto") -> None:
     """The property: a Scene with finite numbers, or a RayError with located diagnostics."""
     try:
-        scene = parse_text(data, file="fuzz.ray", base_dir=base_dir)
+        scene = parse_text(data, file="fuzz.ray", base_dir=base_dir, dialect=dialect)
     except RayError as exc:
         assert exc.errors, "a RayError carries at least one error"
         for d in exc.diagnostics:
@@ -168,6 +195,18 @@ def check_outcome(data, base_dir=None) -> None:
         assert m.phong_coeff >= 0 and m.ior > 0
     for li in scene.lights:
         numbers += [*li.color, *(li.position or ()), *(li.direction or ())]
+    for mesh in scene.meshes:
+        assert mesh.faces and 0 <= mesh.material < len(scene.materials)
+        assert all(0 <= i < len(mesh.vertices) and len(set(f)) == 3 for f in mesh.faces for i in f)
+        numbers += [v for p in mesh.vertices for v in p]
+    if scene.viewport is not None:
+        assert all(isinstance(n, int) and n >= 1 for n in scene.viewport)
+    assert dialect == "auto" or scene.dialect == dialect
+    if scene.dialect == "mit6837":  # its conversion is a valid COMP 575 scene of the same size
+        converted = parse_text(to_comp575(scene), dialect="comp575")
+        assert converted.camera.fov == cam.vertical_fov(*scene.image_size())
+        assert len(converted.materials) == len(scene.materials)
+        assert len(converted.objects) == len(scene.objects) + scene.triangle_count
     assert all(isinstance(v, float) and math.isfinite(v) for v in numbers)
 
 
@@ -180,6 +219,71 @@ def check_diagnostic(d) -> None:
         assert d.column <= len(d.source_line) + 1
         assert "\n" not in d.source_line and "\r" not in d.source_line
     assert d.format()
+
+
+# -- MIT 6.837 ----------------------------------------------------------------------------------
+WORDS_6837 = ["eye", "lookat", "up", "fov", "viewport", "background", "surface", "sphere",
+              "triangles", "v", "f", "end", "light", "SURFACE", "Triangles", "cube", "material",
+              "ambient", "point", "directional", "spotlight", "#", "/", "//x", "#y"]
+COUNTS_6837 = {"eye": 3, "lookat": 3, "up": 3, "fov": 1, "viewport": 2, "background": 3,
+               "surface": 10, "sphere": 4, "v": 3, "triangles": 0, "end": 0}
+INDICES = ["0", "1", "2", "3", "4", "7", "-1", "1.5", "2.0", "1e0", "x", "99999999999"]
+breaks = st.sampled_from([" ", " ", " ", "\n", "\r\n", "\t", " / c\n", " #c\r"])
+
+
+@st.composite
+def lines_6837(draw):
+    """One command of the MIT 6.837 dialect, its tokens joined by spaces or line breaks."""
+    choice = draw(st.integers(0, 9))
+    if choice == 0:
+        words = draw(st.lists(st.sampled_from(WORDS_6837) | tokens, max_size=8))
+    elif choice <= 3:
+        words = ["f"] + draw(st.lists(st.sampled_from(INDICES), min_size=2, max_size=6))
+    elif choice == 4:
+        kind = draw(st.sampled_from(list(LIGHT_TAILS)))
+        count = LIGHT_TAILS[kind] + draw(st.integers(-1, 1))
+        words = ["light"] + draw(st.lists(operands, min_size=3, max_size=3)) + [kind] + \
+            draw(st.lists(operands, min_size=max(count, 0), max_size=max(count, 0)))
+    else:
+        name = draw(st.sampled_from(list(COUNTS_6837)))
+        count = COUNTS_6837[name]
+        if draw(st.integers(0, 4)) == 0:
+            count = max(0, count + draw(st.integers(-2, 2)))
+        words = [name] + draw(st.lists(operands, min_size=count, max_size=count))
+    out = words[0] if words else ""
+    for word in words[1:]:
+        out += draw(breaks) + word
+    return out
+
+
+@st.composite
+def mesh_scenes(draw):
+    """A few MIT 6.837 commands around a mesh block, cut anywhere."""
+    head = draw(st.lists(lines_6837(), max_size=6))
+    body = [f"v {draw(st.sampled_from(GOOD_NUMBERS))} {draw(st.sampled_from(GOOD_NUMBERS))} "
+            f"{draw(st.sampled_from(GOOD_NUMBERS))}" for _ in range(draw(st.integers(0, 5)))]
+    body += draw(st.lists(lines_6837(), max_size=8))
+    text = "\n".join(head + ["triangles"] + body + ["end"] + draw(st.lists(lines_6837(), max_size=3)))
+    return text[:draw(st.integers(0, len(text)))] if draw(st.booleans()) else text
+
+
+@FUZZ
+@given(mesh_scenes())
+def test_mit_6837_mesh_blocks(text):
+    check_outcome(text)
+    check_outcome(text, dialect="mit6837")
+
+
+@FUZZ
+@given(st.lists(lines_6837(), max_size=25).map("\n".join))
+def test_mit_6837_soup(text):
+    check_outcome(text, dialect="mit6837")
+
+
+@FUZZ
+@given(st.text(max_size=200) | soups)
+def test_random_text_as_mit_6837(text):
+    check_outcome(text, dialect="mit6837")
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import (camera_rays, intersect_plane, intersect_sphere, normalize, phong,
+from support import (camera_rays, intersect_plane, intersect_sphere, normalize, phong,
                       render_ray)
 
 # float32 shading of values <= 1 (a normalisation, a dot product, a power): ~1e-6

@@ -87,7 +87,7 @@ def test_the_default_material_is_material_1_1_1_1_1_0_1_0_0_1_numbered_0():
 def test_material_fields_are_its_parameters_in_the_format_order():
     names = [f.name for f in dataclasses.fields(Material)]
     assert Material.FIELDS == tuple(names[:8])
-    assert names[8:] == ["index", "line"]
+    assert names[8:] == ["index", "line", "column"]
 
 
 def test_an_empty_scene_has_the_default_camera_material_and_black_background():

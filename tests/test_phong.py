@@ -11,7 +11,7 @@ formula in float64.
 import numpy as np
 import pytest
 
-from conftest import camera_rays, intersect_sphere, normalize, phong, render_ray
+from support import camera_rays, intersect_sphere, normalize, phong, render_ray
 
 # float32 evaluation of a few products, a dot product and a power of a value in (0, 1]:
 # relative error ~1e-6 (x n for the power); the values here are <= 2, so 2e-5 absolute

@@ -5,7 +5,7 @@ an error naming it."""
 import numpy as np
 import pytest
 
-from conftest import load_ray
+from support import load_ray
 
 
 def test_the_ray_plugins_provide_their_parts(mitsuba):

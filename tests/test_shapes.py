@@ -5,7 +5,7 @@ stack's order; triangles' front side; texture coordinates of triangles."""
 import numpy as np
 import pytest
 
-from conftest import (camera_rays, intersect_plane, intersect_sphere, lit_runs, normalize,
+from support import (camera_rays, intersect_plane, intersect_sphere, lit_runs, normalize,
                       normal_to_world, render_ray, rotation, scaling, stack, to_object,
                       translation)
 

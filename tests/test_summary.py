@@ -80,6 +80,7 @@ def test_summarize_is_the_file_then_the_indented_lines():
         "light 0 0 0 ambient\n", file="x.ray"))
     assert text.splitlines() == [
         "x.ray: ok",
+        "  dialect    COMP 575",
         "  camera     eye (1, 2, 0)  lookat (0, 0, 0)  up (0, 1, 0)  fov 45",  # -0 shows as 0
         "  background (0.25, 0.5, 1)",
         "  objects    4 (2 sphere, 1 plane, 1 cone)",  # in the order of ObjectKind
@@ -123,7 +124,7 @@ def test_summaries_go_to_stdout_diagnostics_to_stderr_and_any_error_makes_it_fal
     assert echo.lines[1][1].startswith(f"{good}: ok\n")
 
     echo = Echo()
-    assert check_scenes([str(bad), str(good)], echo) is False
+    assert check_scenes([str(bad), str(good)], echo, dialect="comp575") is False
     err = [text for stream, text in echo.lines if stream == "stderr"]
     assert err[0].startswith(f"{bad}:1:8: error:") and err[1].startswith(f"{bad}:2:5: error:")
     assert err[2] == f"{bad}: invalid, 2 errors"

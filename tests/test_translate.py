@@ -4,7 +4,7 @@ which id. The ids are the public parameter names (mat{i}, light{j}, background).
 import numpy as np
 import pytest
 
-from conftest import intersect_sphere, normalize
+from support import intersect_sphere, normalize
 
 
 @pytest.fixture(scope="module")
@@ -178,3 +178,33 @@ def test_translated_dict_loads_and_renders(mitsuba, translate):
     np.testing.assert_allclose(image[4, 4], [0.5, 0.25, 1.0], atol=1e-7)
     o = np.array([0.0, 0, 5])
     assert np.isnan(intersect_sphere(o, normalize([1.0, 1, -5]))) and image[0, 0].sum() == 0
+
+
+# -- the MIT 6.837 dialect ------------------------------------------------------------------------
+def test_mit_6837_meshes_are_raytriangles_per_surface_run(translate):
+    d = translate("light 1 1 1 ambient\ntriangles\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+                  "f 0 1 2 3\nsurface 1 0 0 1 1 0 1 0 0 1\nf 2 1 0\nend\n")
+    assert [k for k in d if k.startswith(("mesh", "triangles_"))] == ["mesh0", "mesh1"]
+    assert d["mesh0"]["type"] == "raytriangles" and d["mesh0"]["bsdf"]["id"] == "mat0"
+    assert d["mesh1"]["bsdf"]["id"] == "mat1"
+    np.testing.assert_array_equal(np.array(d["mesh0"]["positions"]).reshape(-1, 3),
+                                  [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 0, 0], [1, 1, 0], [0, 1, 0]])
+    np.testing.assert_array_equal(np.array(d["mesh1"]["positions"]).reshape(-1, 3),
+                                  [[1, 1, 0], [1, 0, 0], [0, 0, 0]])  # face order: the front side
+    np.testing.assert_array_equal(np.array(d["mesh1"]["texcoords"]).reshape(-1, 2),
+                                  [[0, 0], [1, 0], [0, 1]])
+
+
+def test_mit_6837_spheres_are_analytic_even_several_on_a_line(translate):
+    d = translate("light 1 1 1 ambient\nsphere 0 0 0 1 sphere 2 0 0 0.5 sphere 0 2 0 2\n")
+    spheres = {k: v for k, v in _shapes(d).items() if v["type"] == "sphere"}
+    assert len(spheres) == 3
+
+
+def test_mit_6837_sensor_fov_is_vertical_for_the_image(translate):
+    import math
+
+    d = translate("fov 60\nsurface 1 1 1 1 1 0 1 0 0 1\n", width=16, height=8)
+    expected = math.degrees(2 * math.atan(math.tan(math.radians(30)) * 8 / 16))
+    assert d["sensor"]["fov"] == pytest.approx(expected, abs=1e-12)
+    assert d["sensor"]["fov_axis"] == "y"

@@ -1,6 +1,6 @@
 """The ``raywhitted`` integrator: the contract's ray tree, number for number.
 
-Every expectation is computed independently in float64 numpy (conftest.py's camera and
+Every expectation is computed independently in float64 numpy (support.py's camera and
 intersection helpers, reference_tracer.py), never read back from the renderer.
 """
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import reference_tracer as rt
-from conftest import (camera_ray, camera_rays, intersect_plane, intersect_sphere, intersect_triangle,
+from support import (camera_ray, camera_rays, intersect_plane, intersect_sphere, intersect_triangle,
                       load_ray, normalize, render_ray)
 
 # The renderer computes in float32: a shading value of order 1 built from a few products

@@ -1,0 +1,194 @@
+"""Helpers shared by several test files (``from support import ...``).
+
+* :func:`render_ray` renders .RAY text at a small size and returns a numpy (H, W, 3) array.
+* :func:`camera_rays` is an independent implementation of the format's pixel-ray
+  geometry (pixel centre (x + 0.5, y + 0.5), row 0 at the top, image right =
+  normalize(view x up), vertical fov), so that a test can compute the exact expected
+  value of a pixel in numpy (float64) without asking the renderer.
+* A few float64 intersection routines (sphere, ellipsoid, plane) and the contract's
+  local shading formula, for the same purpose.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+# -- rendering ----------------------------------------------------------------------------------
+def load_ray(text, width=32, height=32, spp=1, max_depth=5, srgb=False, dialect="auto"):
+    import raymitsuba
+
+    return raymitsuba.load(text, width=width, height=height, spp=spp, max_depth=max_depth,
+                           srgb=srgb, dialect=dialect)
+
+
+def render_ray(text, width=32, height=32, spp=1, max_depth=5, srgb=False,
+               dialect="auto") -> np.ndarray:
+    """Render .RAY ``text``; a float32 numpy array of shape (height, width, 3), linear."""
+    import raymitsuba
+
+    loaded = load_ray(text, width, height, spp, max_depth, srgb, dialect)
+    return np.array(raymitsuba.render(loaded))
+
+
+# -- the camera ---------------------------------------------------------------------------------
+def normalize(v):
+    v = np.asarray(v, dtype=np.float64)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def camera_basis(eye=(0, 0, 5), lookat=(0, 0, 0), up=(0, 1, 0)):
+    """(forward, right, top): unit vectors; right = normalize(view x up), top = right x view."""
+    forward = normalize(np.subtract(lookat, eye))
+    right = normalize(np.cross(forward, up))
+    top = np.cross(right, forward)
+    return forward, right, top
+
+
+def camera_ray(x, y, width, height, eye=(0, 0, 5), lookat=(0, 0, 0), up=(0, 1, 0), fov=45.0):
+    """(origin, unit direction) of the camera ray through the point (x, y) of the film in
+    pixel units, x to the right, y down from the top edge; the centre of pixel (col, row) is
+    (col + 0.5, row + 0.5). Broadcasts over arrays x, y (directions get a last axis of 3)."""
+    forward, right, top = camera_basis(eye, lookat, up)
+    tan_half = math.tan(math.radians(fov) / 2.0)
+    sx = (2.0 * np.asarray(x, np.float64) / width - 1.0) * tan_half * width / height
+    sy = (1.0 - 2.0 * np.asarray(y, np.float64) / height) * tan_half
+    d = forward + sx[..., None] * right + sy[..., None] * top
+    return np.asarray(eye, np.float64), normalize(d)
+
+
+def camera_rays(width, height, eye=(0, 0, 5), lookat=(0, 0, 0), up=(0, 1, 0), fov=45.0,
+                dx=0.0, dy=0.0):
+    """Rays through every pixel centre (shifted by (dx, dy) pixels): origin and (H, W, 3) directions."""
+    rows, cols = np.meshgrid(np.arange(height), np.arange(width), indexing="ij")
+    return camera_ray(cols + 0.5 + dx, rows + 0.5 + dy, width, height, eye, lookat, up, fov)
+
+
+def world_to_pixel(p, width, height, eye=(0, 0, 5), lookat=(0, 0, 0), up=(0, 1, 0), fov=45.0):
+    """Film position (x, y) in pixels (as camera_ray takes it) of the world point p."""
+    forward, right, top = camera_basis(eye, lookat, up)
+    q = np.asarray(p, np.float64) - np.asarray(eye, np.float64)
+    depth = q @ forward
+    tan_half = math.tan(math.radians(fov) / 2.0)
+    sx = (q @ right) / depth / (tan_half * width / height)
+    sy = (q @ top) / depth / tan_half
+    return (sx + 1.0) * width / 2.0, (1.0 - sy) * height / 2.0
+
+
+# -- transforms (the contract's conventions, in float64) ----------------------------------------
+def translation(x, y, z):
+    m = np.eye(4)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def scaling(x, y, z):
+    return np.diag([float(x), float(y), float(z), 1.0])
+
+
+def rotation(axis, degrees):
+    """Counter-clockwise by ``degrees`` looking from the positive ``axis`` ("x", "y" or "z")
+    toward the origin (right-handed)."""
+    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+    i, j = {"x": (1, 2), "y": (2, 0), "z": (0, 1)}[axis]
+    m = np.eye(4)
+    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+    return m
+
+
+def stack(*transforms):
+    """The object-to-world matrix of a transform stack, oldest first: Tn ... T2 T1."""
+    m = np.eye(4)
+    for t in transforms:
+        m = t @ m
+    return m
+
+
+def to_object(to_world, o, d):
+    """Rays (o, d) in the object space of ``to_world`` (directions not renormalised, so t is
+    the same parameter in both spaces)."""
+    inv = np.linalg.inv(to_world)
+    return inv[:3, :3] @ np.asarray(o, np.float64) + inv[:3, 3], d @ inv[:3, :3].T
+
+
+def normal_to_world(to_world, n_obj):
+    """Object-space normals to unit world normals by the inverse transpose."""
+    return normalize(n_obj @ np.linalg.inv(to_world[:3, :3]))
+
+
+# -- geometry in float64 ------------------------------------------------------------------------
+def intersect_sphere(o, d, center=(0, 0, 0), radius=1.0):
+    """Nearest positive t of unit-direction rays (o, d) with a sphere; nan where missed."""
+    oc = np.asarray(o, np.float64) - np.asarray(center, np.float64)
+    b = np.sum(oc * d, axis=-1)
+    c = np.sum(oc * oc, axis=-1) - radius * radius
+    disc = b * b - c
+    root = np.sqrt(np.where(disc >= 0, disc, np.nan))
+    t0, t1 = -b - root, -b + root
+    return np.where(t0 > 1e-9, t0, np.where(t1 > 1e-9, t1, np.nan))
+
+
+def intersect_ellipsoid(o, d, to_world):
+    """(t, world unit normal) of rays with the unit sphere mapped by the 4x4 ``to_world``."""
+    m = np.asarray(to_world, np.float64)
+    inv = np.linalg.inv(m)
+    o_obj = inv[:3, :3] @ np.asarray(o, np.float64) + inv[:3, 3]
+    d_obj = d @ inv[:3, :3].T
+    a = np.sum(d_obj * d_obj, axis=-1)
+    b = np.sum(o_obj * d_obj, axis=-1)
+    c = np.sum(o_obj * o_obj, axis=-1) - 1.0
+    disc = b * b - a * c
+    root = np.sqrt(np.where(disc >= 0, disc, np.nan))
+    t0, t1 = (-b - root) / a, (-b + root) / a
+    t = np.where(t0 > 1e-9, t0, np.where(t1 > 1e-9, t1, np.nan))
+    p_obj = o_obj + t[..., None] * d_obj
+    n = normalize(p_obj @ inv[:3, :3])  # inverse transpose: (M^-T n) for row vectors
+    return t, n
+
+
+def intersect_plane(o, d, point, normal):
+    """t of rays with the plane through ``point`` with ``normal``; nan where parallel/behind."""
+    denom = d @ np.asarray(normal, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (np.subtract(point, o) @ np.asarray(normal, np.float64)) / denom
+    return np.where(t > 1e-9, t, np.nan)
+
+
+def intersect_triangle(o, d, a, b, c):
+    """(t, u, v) of rays with triangle abc (Moller-Trumbore; point = a + u (b - a) + v (c - a));
+    t is nan where the ray misses the triangle's plane region or the hit is behind."""
+    a, b, c = (np.asarray(x, np.float64) for x in (a, b, c))
+    e1, e2 = b - a, c - a
+    pvec = np.cross(d, e2)
+    det = pvec @ e1
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / det
+        tvec = np.asarray(o, np.float64) - a
+        u = np.sum(tvec * pvec, axis=-1) * inv
+        qvec = np.cross(tvec, e1)
+        v = np.sum(d * qvec, axis=-1) * inv
+        t = (qvec @ e2) * inv
+    inside = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 1e-9)
+    return np.where(inside, t, np.nan), u, v
+
+
+def phong(n, v, l, color, kd, ks, exponent, intensity=(1, 1, 1)):
+    """The contract's per-light term I (kd C (N.L) + ks (R.V)^n), 0 where N.L <= 0.
+    ``n`` must already face ``v``; broadcasts over leading axes."""
+    n_dot_l = np.sum(n * l, axis=-1, keepdims=True)
+    r = 2.0 * n_dot_l * n - l
+    r_dot_v = np.sum(r * v, axis=-1, keepdims=True)
+    spec = np.where(r_dot_v > 0, np.power(np.maximum(r_dot_v, 0.0), exponent), 0.0)
+    value = kd * np.asarray(color, np.float64) * n_dot_l + ks * spec
+    return np.asarray(intensity, np.float64) * np.where(n_dot_l > 0, value, 0.0)
+
+
+def lit_runs(mask):
+    """For each row of a boolean (H, W) mask: (first, last) True column, or None."""
+    out = []
+    for row in mask:
+        cols = np.flatnonzero(row)
+        out.append((cols[0], cols[-1]) if len(cols) else None)
+    return out
