@@ -21,7 +21,8 @@ Conventions, decided here once:
 import drjit as dr
 import mitsuba as mi
 
-from ._lift import SmoothMeshes
+from ._hits import HitTable
+from ._lift import lifted_point
 from ._surfaces import NO_SLOT, SceneTerms, with_kt_derivative
 from .phong import phong_local
 
@@ -93,12 +94,12 @@ class Tracer:
         self.max_shadow_crossings = max_shadow_crossings
         self.progress = None
         self.rays_per_generation = []  # of the last trace: how many rays each depth traced
-        self.smooth_meshes = SmoothMeshes()  # the terminator lift's table, kept across renders
+        self.geometry = HitTable()  # the scene's geometry by shape id, kept across renders
 
     def trace(self, scene, ray):
         """The color of each ray of ``ray`` (one lane per ray) through its whole tree."""
         terms = SceneTerms(scene)
-        terms.smooth_meshes = self.smooth_meshes.update(scene)
+        terms.geometry = self.geometry.update(scene)
         generations = []
         self.rays_per_generation = []
         for depth in range(self.max_depth + 1):
@@ -124,7 +125,7 @@ class Tracer:
     def step(self, scene, terms, ray, depth, children):
         """Intersect and shade ``ray``; with ``children``, also the children's weights and rays.
 """
-        si = scene.ray_intersect(ray, ray_flags=mi.RayFlags.AllNonDifferentiable, coherent=(depth == 0))
+        si = self.intersect(scene, terms.geometry, ray, coherent=(depth == 0))
         hit = si.is_valid()
         surfaces = terms.surfaces
         slot = surfaces.slot(si.shape, hit)
@@ -144,6 +145,15 @@ class Tracer:
         rays = (si.spawn_ray(reflect(v, n)), si.spawn_ray(refracted_d))
         return Step(local, hit, weights, rays)
 
+    def intersect(self, scene, geometry, ray, coherent):
+        """The surface interaction of each ray: by lookup in the geometry table (see
+        _hits.py), or, for a scene with shapes the table does not know, through Mitsuba's
+        dispatch (the shapes' own parameters detached: they are not the renderer's)."""
+        if geometry.supported:
+            return geometry.intersect(scene, ray, coherent)
+        return scene.ray_intersect(ray, ray_flags=mi.RayFlags.AllNonDifferentiable,
+                                   coherent=coherent)
+
     def facing_normal(self, si, ray):
         """The shading normal flipped to the side the ray comes from."""
         n = si.sh_frame.n
@@ -160,7 +170,7 @@ class Tracer:
         ks = surfaces.get("specular_mix", slot, hit)
         exponent = surfaces.get("phong_coeff", slot, hit)
         n, v = self.facing_normal(si, ray), -ray.d
-        lifted = terms.smooth_meshes.lifted_point(si, hit)  # see _lift.py
+        lifted = lifted_point(terms.geometry, si, hit)  # see _lift.py
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
