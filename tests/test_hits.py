@@ -1,0 +1,127 @@
+"""The geometry table (plugins/_hits.py): surface interactions by lookup, against Mitsuba's
+own ``scene.ray_intersect`` on the same rays -- the same bits on meshes, the same up to
+float rounding of uv on analytic spheres -- and the same derivatives along the ray."""
+
+import numpy as np
+import pytest
+
+from support import load_ray
+
+SCENE = """\
+eye 0.3 1.2 6
+lookat 0 0.3 0
+light 1 1 1 point 2 4 5
+material 0.8 0.3 0.2 0.2 0.7 0.3 20 0 0 1
+translate -1.4 0.5 0
+sphere
+pop
+scale 0.6 0.9 0.6
+translate 0 0.6 0
+sphere
+pop
+pop
+translate 1.4 0 0
+cylinder
+pop
+checkerboard 1
+translate 0 -0.5 0
+plane
+pop
+checkerboard -1
+triangle -3 0 -2  3 0 -2  0 3 -2
+"""
+
+
+@pytest.fixture(scope="module")
+def hits(mitsuba):
+    """(scene, rays through every pixel, Mitsuba's interactions, the table's interactions)."""
+    from raymitsuba.plugins._camera import camera_rays
+    from raymitsuba.plugins._hits import HitTable
+
+    mi = mitsuba
+    scene = load_ray(SCENE, 48, 36).scene
+    table = HitTable().update(scene)
+    assert table.supported
+    ray = camera_rays(scene.sensors()[0], 48, 36, 1)
+    want = scene.ray_intersect(ray, ray_flags=mi.RayFlags.AllNonDifferentiable, coherent=True)
+    return scene, table, ray, want, table.intersect(scene, ray, True)
+
+
+def fields(si):
+    return {"t": si.t, "p": si.p, "n": si.n, "sh_n": si.sh_frame.n, "uv": si.uv}
+
+
+def test_the_scene_has_every_kind_of_shape(hits):
+    scene, *_ = hits
+    shapes = scene.shapes()
+    assert any(shape.class_name() == "Sphere" for shape in shapes)
+    assert any(shape.is_mesh() and shape.has_vertex_normals() for shape in shapes)  # smooth
+    assert any(shape.is_mesh() and not shape.has_vertex_normals() for shape in shapes)  # flat
+
+
+def test_same_hits_as_mitsuba(mitsuba, hits):
+    import drjit as dr
+
+    _, _, _, want, got = hits
+    valid = np.array(want.is_valid())
+    assert np.array_equal(valid, np.array(got.is_valid())) and valid.sum() > 500
+    assert np.array_equal(np.array(dr.reinterpret_array(mitsuba.UInt32, want.shape)),
+                          np.array(dr.reinterpret_array(mitsuba.UInt32, got.shape)))
+    assert np.array_equal(np.array(want.prim_index)[valid], np.array(got.prim_index)[valid])
+
+
+def test_mesh_fields_are_mitsubas_bits_and_sphere_uv_close(mitsuba, hits):
+    import drjit as dr
+
+    scene, _, _, want, got = hits
+    valid = np.array(want.is_valid())
+    spheres = {dr.reinterpret_array(mitsuba.UInt32, mitsuba.ShapePtr(s))[0]
+               for s in scene.shapes() if s.class_name() == "Sphere"}
+    on_sphere = np.isin(np.array(dr.reinterpret_array(mitsuba.UInt32, want.shape)), list(spheres))
+    assert on_sphere[valid].sum() > 50 and (~on_sphere[valid]).sum() > 300
+    for name, value in fields(want).items():
+        a = np.array(value).reshape(-1, valid.size)[:, valid]
+        b = np.array(fields(got)[name]).reshape(-1, valid.size)[:, valid]
+        if name == "uv":
+            assert np.array_equal(a[:, ~on_sphere[valid]], b[:, ~on_sphere[valid]])
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-5)
+        else:
+            assert np.array_equal(a, b), name
+
+
+def test_derivatives_follow_the_ray_as_mitsubas(mitsuba, hits):
+    # d(t, p, uv)/d(ray direction) in forward mode, both ways.
+    import drjit as dr
+
+    mi = mitsuba
+    scene, table, ray, _, _ = hits
+    theta = mi.Float(0.0)
+    dr.enable_grad(theta)
+    moved = mi.Ray3f(ray.o, dr.normalize(ray.d + mi.Vector3f(theta, 0.5 * theta, 0.0)))
+    want = scene.ray_intersect(moved, ray_flags=mi.RayFlags.AllNonDifferentiable, coherent=False)
+    got = table.intersect(scene, moved)
+    outputs = [want.t, want.p, got.t, got.p]
+    dr.set_grad(theta, 1.0)
+    dr.forward_to(*outputs)
+    grads = [np.array(dr.grad(o)) for o in outputs]
+    valid = np.array(want.is_valid())
+    for a, b in ((grads[0], grads[2]), (grads[1], grads[3])):
+        a = a.reshape(-1, valid.size)[:, valid]
+        b = b.reshape(-1, valid.size)[:, valid]
+        assert np.abs(a).max() > 0.1
+        np.testing.assert_allclose(b, a, rtol=1e-2, atol=1e-3)  # float32; grazing hits
+
+
+def test_a_shape_outside_the_table_falls_back_to_mitsuba(mitsuba):
+    # Mitsuba's analytic disk: not in the table; the render still shades it.
+    from raymitsuba.plugins._hits import HitTable
+
+    mi = mitsuba
+    loaded = load_ray("light 1 1 1 point 0 0 5\nsphere\n", 8, 8)
+    scene_dict = dict(loaded.scene_dict)
+    scene_dict["extra"] = {"type": "disk", "bsdf": {"type": "ref", "id": "mat0"},
+                           "to_world": mi.ScalarTransform4f().translate([0, 0, -3])}
+    scene = mi.load_dict(scene_dict)
+    assert not HitTable().update(scene).supported
+    image = np.array(mi.render(scene))
+    assert image.shape == (8, 8, 3) and image.max() > 0
