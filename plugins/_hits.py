@@ -112,6 +112,8 @@ class HitTable:
             face_count += len(mesh_faces) // 3
             vertex_count += count
         self.kind, self.first = mi.UInt32(kind), mi.UInt32(first)
+        # The table's length as data, not as a constant of the kernels (it grows with the scene).
+        self.size = dr.opaque(mi.UInt32, size)
         self.has_meshes, self.has_spheres = bool(faces), bool(spheres)
 
         def upload(parts, dtype, empty):
@@ -140,7 +142,7 @@ class HitTable:
         pi = scene.ray_intersect_preliminary(ray, coherent=coherent)
         valid = pi.is_valid()
         shape_id = dr.reinterpret_array(mi.UInt32, pi.shape)
-        valid &= shape_id < dr.width(self.kind)
+        valid &= shape_id < self.size
         kind = dr.gather(mi.UInt32, self.kind, shape_id, valid)
         row = dr.gather(mi.UInt32, self.first, shape_id, valid)
         attached = dr.grad_enabled(ray.o, ray.d)

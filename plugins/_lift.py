@@ -26,7 +26,7 @@ def lifted_point(table, si, active):
     if not getattr(table, "has_smooth", False):
         return None
     shape_id = dr.reinterpret_array(mi.UInt32, si.shape)
-    active = active & (shape_id < dr.width(table.kind))
+    active = active & (shape_id < table.size)
     kind = dr.gather(mi.UInt32, table.kind, shape_id, active)
     mask = active & ((kind & SMOOTH) != 0)
     row = dr.gather(mi.UInt32, table.first, shape_id, mask)
