@@ -288,10 +288,14 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
         scales[key] = max(1.0, float(np.max(np.abs(np.atleast_1d(start[key])))))
     params.update(optimizer)
     start = {key: to_python(optimizer[key]) for key in keys}  # clamped
+    # The steps render and update through the fitted parameters only: Mitsuba's render and
+    # update visit every parameter they are given, 8 per material of the scene.
+    fitted = mi.traverse(loaded.scene)
+    fitted.keep(keys)
 
     result = FitResult(keys=keys, start=start, fitted=dict(start))
     for iteration in range(iters):
-        image = render(loaded, spp=spp)
+        image = render(loaded, spp=spp, params=fitted)
         loss = dr.mean(dr.square(image - target_tensor), axis=None)
         dr.backward(loss)
         loss_value = float(loss.numpy().ravel()[0])
@@ -309,7 +313,7 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
             clamped = clamp_value(key, value)
             if clamped != value:
                 optimizer[key] = typed(mi, params[key], clamped)
-        params.update(optimizer)
+        fitted.update(optimizer)
         step = Step(iteration + 1, loss_value, values)
         result.history.append(step)
         result.iterations = iteration + 1
