@@ -19,8 +19,9 @@ plugin name        kind       file
 Modules whose names start with ``_`` are pieces shared by plugins, not plugins:
 ``_mesh.py`` (tessellations to meshes), and the Whitted integrator's
 ``_camera.py`` (camera rays, box filter), ``_protocol.py`` (what it reads from
-the plugins), ``_surfaces.py`` (the surface table), ``_lift.py`` (the terminator
-lift) and ``_tree.py`` (the ray tree).
+the plugins), ``_surfaces.py`` (the surface table), ``_hits.py`` (the geometry
+table: surface interactions by lookup), ``_lift.py`` (the terminator lift) and
+``_tree.py`` (the ray tree).
 
 Import this package only after a Mitsuba variant is set (see raymitsuba.backend).
 """

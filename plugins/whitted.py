@@ -19,6 +19,8 @@ The pieces, one idea per module:
 * ``_protocol.py``: what the integrator reads from surfaces, lights, background;
 * ``_surfaces.py``: the surface table (every surface's parameters by slot), the
   lights and the background, read from the scene at the start of a render;
+* ``_hits.py``: the surface interaction of each hit, by lookup in one table of the
+  scene's geometry;
 * ``_lift.py``: where shadow rays leave smooth meshes near their terminator;
 * ``_tree.py``: the ray tree, traced generation by generation (a wavefront), with
   the conventions for directions, normals and entering/leaving decided there.
