@@ -123,9 +123,11 @@ class HitTable:
         self.faces = mi.UInt32(np.concatenate(faces).astype(np.uint32)) if faces else \
             dr.zeros(mi.UInt32, 3)
         self.positions = upload(positions, np.float32, 3)
-        self.normals = upload(normals, np.float32, 3)
-        self.texcoords = upload(texcoords, np.float32, 2)
         self.has_smooth = bool(np.any(kind & SMOOTH))
+        self.has_texcoords = bool(np.any(kind & TEXCOORDS))
+        # (only the attributes some mesh has: flat or untextured scenes keep no zeros)
+        self.normals = upload(normals if self.has_smooth else [], np.float32, 3)
+        self.texcoords = upload(texcoords if self.has_texcoords else [], np.float32, 2)
         if spheres:
             m = np.array([matrix for matrix, _ in spheres])
             inverse = np.array([inverse for _, inverse in spheres])
@@ -199,9 +201,11 @@ class HitTable:
             interpolated = dr.fma(n2, b2, dr.fma(n1, b1, n0 * b0))
             interpolated *= dr.rsqrt(dr.squared_norm(interpolated))
             shading_n = dr.select(smooth, mi.Normal3f(interpolated), n)
-        textured = mesh & ((kind & TEXCOORDS) != 0)
-        uv0, uv1, uv2 = (dr.gather(mi.Point2f, self.texcoords, v, textured) for v in vertex)
-        uv = dr.select(textured, dr.fma(uv2, b2, dr.fma(uv1, b1, uv0 * b0)), mi.Point2f(b1, b2))
+        uv = mi.Point2f(b1, b2)
+        if self.has_texcoords:
+            textured = mesh & ((kind & TEXCOORDS) != 0)
+            uv0, uv1, uv2 = (dr.gather(mi.Point2f, self.texcoords, v, textured) for v in vertex)
+            uv = dr.select(textured, dr.fma(uv2, b2, dr.fma(uv1, b1, uv0 * b0)), uv)
         return t, p, n, shading_n, uv
 
     def sphere_hit(self, pi, ray, row, sphere, attached):
