@@ -10,34 +10,48 @@ command means (the parser already did). The dict is inspectable and is what
 * ``light{j}``: the j-th ``light`` line, a ``raylight`` emitter;
 * ``background``: a ``raybackground`` emitter;
 * ``sensor``, ``integrator`` (``raywhitted``);
-* shapes ``{kind}_{line}`` (``triangles_{k}`` for merged triangles) and
-  textured surfaces ``surface{k}`` (``raytextured`` wrapping ``mat{i}``).
+* shapes ``sphere_{line}``, ``plane_{line}``, ``triangles_{k}`` and ``quadrics_{k}``
+  (merged meshes, one per surface) and textured surfaces ``surface{k}``
+  (``raytextured`` wrapping ``mat{i}``).
 
-Geometry choices (see the shape plugins for their tessellations):
+Geometry choices (the work is linear in the number of objects, done in bulk with numpy
+wherever there are many):
 
 * sphere: Mitsuba's analytic ``sphere`` when the transform is a similarity
-  without mirroring (exact), else a ``rayellipsoid`` mesh;
-* cylinder, cone: ``raycylinder`` / ``raycone`` meshes;
+  without mirroring (exact), else tessellated (below);
+* cylinder, cone, and the other spheres: tessellated (see :mod:`raymitsuba.tessellation`),
+  all those of one surface merged into one smooth ``raytriangles`` mesh, ``quadrics_{k}``;
 * plane: ``rayplane``, rings centred under the camera out past the horizon;
-* triangles: one ``raytriangles`` mesh per surface (material and texture).
+* triangles: one flat ``raytriangles`` mesh per surface, ``triangles_{k}``.
 
 Tessellation density follows the object's projected size: a curved object whose
 bounding sphere spans r pixels gets m = pi sqrt(r / (2 e)) segments around, so its
 polygonal silhouette is within e = 0.05 pixel of the true one (clamped to
-[MIN_SEGMENTS, MAX_SEGMENTS]).
+[MIN_SEGMENTS, MAX_SEGMENTS], even). The **tessellation budget** bounds the memory:
+when the tessellated objects together would have more than
+``Options.tessellation_budget`` triangles, every count is scaled down by one common
+factor (the largest that fits; no count below BUDGET_MIN_SEGMENTS), trading silhouette
+accuracy (an error of about r pi^2 / (2 m^2) pixels) for memory; a scene that does not
+fit even at BUDGET_MIN_SEGMENTS is refused (:class:`GeometryTooLarge`) before any mesh
+is built.
 """
 
 from __future__ import annotations
 
 import math
+import operator
+from itertools import chain
 from dataclasses import dataclass
 
 import numpy as np
 
+from raymitsuba import tessellation
 from raymitsuba.model import Material, ObjectKind, Scene, SceneObject
 
 SILHOUETTE_ERROR_PX = 0.05
 MIN_SEGMENTS, MAX_SEGMENTS = 48, 768
+TESSELLATION_BUDGET = 2_000_000  # triangles of all tessellated objects together
+BUDGET_MIN_SEGMENTS = 12  # the budget never goes below this many segments around
 PLANE_REACH = 1e6  # the plane mesh reaches this many camera heights away
 NEAR_CLIP, FAR_CLIP = 1e-4, 1e12
 
@@ -53,6 +67,11 @@ class Options:
     spp: int = 1
     max_depth: int = 5
     srgb: bool = False  # decode 8-bit textures from sRGB (and encode 8-bit output)
+    tessellation_budget: int = TESSELLATION_BUDGET
+
+
+class GeometryTooLarge(ValueError):
+    """The scene's curved objects cannot be tessellated within the budget."""
 
 
 def translate(model: Scene, options: Options | None = None, **kwargs) -> dict:
@@ -69,17 +88,9 @@ def translate(model: Scene, options: Options | None = None, **kwargs) -> dict:
     for light in model.lights:
         scene[f"light{light.index}"] = emitter(light, mi)
     surfaces = Surfaces(options, mi)
-    shapes, triangles = {}, {}
-    for obj in model.objects:
-        ref = surfaces.ref(obj)
-        if obj.kind is ObjectKind.TRIANGLE:
-            triangles.setdefault(ref["id"], []).append(obj)
-        else:
-            shapes[f"{obj.kind.value}_{obj.line}"] = shape(obj, model, options, mi) | {"bsdf": ref}
-    for k, (surface_id, objs) in enumerate(triangles.items()):
-        shapes[f"triangles_{k}"] = triangle_mesh(objs, mi) | {"bsdf": {"type": "ref", "id": surface_id}}
+    objects = shapes(model, options, surfaces, mi)
     # Textured surfaces reference the materials and are referenced by the shapes.
-    return scene | surfaces.dicts | shapes
+    return scene | surfaces.dicts | objects
 
 
 def rgb(color, mi):
@@ -129,9 +140,10 @@ class Surfaces:
         self.ids: dict = {}
         self.dicts: dict = {}
 
-    def ref(self, obj: SceneObject) -> dict:
+    def id(self, obj: SceneObject) -> str:
+        """The id of the BSDF of ``obj``'s surface (made on first use)."""
         if obj.texture is None and obj.checker is None:
-            return {"type": "ref", "id": f"mat{obj.material}"}
+            return f"mat{obj.material}"
         key = (obj.material, obj.texture.path if obj.texture else None, obj.checker)
         if key not in self.ids:
             surface_id = f"surface{len(self.ids)}"
@@ -145,51 +157,136 @@ class Surfaces:
             if obj.checker is not None:
                 surface["checker"] = {"type": "raychecker", "size": float(obj.checker)}
             self.dicts[surface_id] = surface
-        return {"type": "ref", "id": self.ids[key]}
+        return self.ids[key]
 
 
 # -- shapes -------------------------------------------------------------------------------------
-def matrix(obj):
-    return np.array(obj.to_world, dtype=np.float64)
+CURVED = (ObjectKind.SPHERE, ObjectKind.CYLINDER, ObjectKind.CONE)
+BOUNDING_RADIUS = {ObjectKind.SPHERE: 1.0, ObjectKind.CYLINDER: math.sqrt(1.25),
+                   ObjectKind.CONE: math.sqrt(1.25)}  # of the primitive in object space
 
 
-def is_similarity(linear):
-    """Rotation times a positive uniform scale (no mirroring, no shear)."""
-    gram = linear.T @ linear
-    scale2 = np.trace(gram) / 3.0
-    return np.linalg.det(linear) > 0 and np.allclose(gram, scale2 * np.eye(3), rtol=0, atol=1e-9 * scale2)
+def shapes(model, options, surfaces, mi) -> dict:
+    """Every object's shape: analytic spheres and planes one by one, the rest merged per
+    surface (objects grouped by (kind, surface) in one pass, then built in bulk)."""
+    groups = {}
+    for obj in model.objects:
+        groups.setdefault((obj.kind, surfaces.id(obj)), []).append(obj)
+    out, curved = {}, []
+    for (kind, surface_id), objs in groups.items():
+        ref = {"type": "ref", "id": surface_id}
+        if kind is ObjectKind.PLANE:
+            for obj in objs:
+                out[f"plane_{obj.line}"] = plane(obj, model, mi) | {"bsdf": ref}
+            continue
+        if kind is ObjectKind.TRIANGLE:
+            out[f"triangles_{len(out)}"] = triangle_mesh(objs, mi) | {"bsdf": ref}
+            continue
+        m = matrices(objs)
+        exact = analytic_sphere(m) if kind is ObjectKind.SPHERE else np.zeros(len(objs), bool)
+        for obj, to_world in zip((o for o, e in zip(objs, exact) if e), m[exact]):
+            out[f"sphere_{obj.line}"] = {"type": "sphere", "bsdf": ref,
+                                         "to_world": mi.ScalarTransform4f(to_world @ Z_TO_Y)}
+        if not exact.all():
+            curved.append((surface_id, kind, m[~exact]))
+    meshes = quadric_meshes(curved, model, options, mi)
+    return out | {f"quadrics_{k}": mesh for k, mesh in enumerate(meshes)}
 
 
-def segments(obj, model, options, radius):
-    """Segments around a curved object so its silhouette is within SILHOUETTE_ERROR_PX."""
-    m = matrix(obj)
-    center = m[:3, 3]
-    extent = radius * np.linalg.norm(m[:3, :3], 2)  # world bounding-sphere radius
-    distance = max(np.linalg.norm(center - np.array(model.camera.eye)) - extent, 1e-3 * extent)
+def matrices(objs) -> np.ndarray:
+    """The objects' to_world matrices, (n, 4, 4) float64."""
+    return np.array(list(map(operator.attrgetter("to_world"), objs)), dtype=np.float64).reshape(-1, 4, 4)
+
+
+def analytic_sphere(m):
+    """Which transforms (n, 4, 4) Mitsuba's analytic sphere draws exactly: a rotation times a
+    positive uniform scale (a similarity without mirroring or shear)."""
+    linear = m[:, :3, :3]
+    gram = np.einsum("nki,nkj->nij", linear, linear)
+    scale2 = np.trace(gram, axis1=1, axis2=2) / 3.0
+    off = np.abs(gram - scale2[:, None, None] * np.eye(3)).max(axis=(1, 2))
+    return (np.linalg.det(linear) > 0) & (off <= 1e-9 * scale2)
+
+
+def plane(obj, model, mi) -> dict:
+    m = np.array(obj.to_world, dtype=np.float64)
+    eye = np.linalg.solve(m, np.array([*model.camera.eye, 1.0]))  # the eye in object space
+    height = max(abs(eye[1]), 1e-3)
+    return {"type": "rayplane", "to_world": mi.ScalarTransform4f(m),
+            "center_x": float(eye[0]), "center_z": float(eye[2]),
+            "inner": height / 4.0, "outer": height * PLANE_REACH}
+
+
+# -- tessellated objects: segment counts, the budget, merged meshes ----------------------------
+def wanted_segments(m, kind, model, options):
+    """Segments around each object (transforms m, (n, 4, 4)) so its silhouette is within
+    SILHOUETTE_ERROR_PX, clamped to [MIN_SEGMENTS, MAX_SEGMENTS] (not yet even)."""
+    center = m[:, :3, 3]
+    extent = BOUNDING_RADIUS[kind] * np.linalg.norm(m[:, :3, :3], 2, axis=(1, 2))  # world bounding radius
+    distance = np.maximum(np.linalg.norm(center - np.array(model.camera.eye), axis=1) - extent,
+                          1e-3 * extent)
     tan_half = math.tan(math.radians(model.camera.fov) / 2.0)
     pixels = extent / distance / tan_half * options.height / 2.0
-    wanted = math.pi * math.sqrt(max(pixels, 1.0) / (2.0 * SILHOUETTE_ERROR_PX))
-    count = int(min(max(math.ceil(wanted), MIN_SEGMENTS), MAX_SEGMENTS))
+    wanted = np.ceil(math.pi * np.sqrt(np.maximum(pixels, 1.0) / (2.0 * SILHOUETTE_ERROR_PX)))
+    return np.clip(wanted, MIN_SEGMENTS, MAX_SEGMENTS)
+
+
+def scaled_segments(wanted, factor):
+    """The counts ``wanted`` scaled by ``factor`` <= 1, at least BUDGET_MIN_SEGMENTS, even."""
+    count = np.clip(np.ceil(wanted * factor), BUDGET_MIN_SEGMENTS, MAX_SEGMENTS).astype(np.int64)
     return count + count % 2
 
 
-def shape(obj: SceneObject, model, options, mi) -> dict:
-    m = matrix(obj)
-    if obj.kind is ObjectKind.SPHERE:
-        if is_similarity(m[:3, :3]):
-            return {"type": "sphere", "to_world": mi.ScalarTransform4f(m @ Z_TO_Y)}
-        return {"type": "rayellipsoid", "to_world": mi.ScalarTransform4f(m),
-                "segments": segments(obj, model, options, 1.0)}
-    if obj.kind in (ObjectKind.CYLINDER, ObjectKind.CONE):
-        return {"type": "ray" + obj.kind.value, "to_world": mi.ScalarTransform4f(m),
-                "segments": segments(obj, model, options, math.sqrt(1.25))}
-    if obj.kind is ObjectKind.PLANE:
-        eye = np.linalg.solve(m, np.array([*model.camera.eye, 1.0]))  # the eye in object space
-        height = max(abs(eye[1]), 1e-3)
-        return {"type": "rayplane", "to_world": mi.ScalarTransform4f(m),
-                "center_x": float(eye[0]), "center_z": float(eye[2]),
-                "inner": height / 4.0, "outer": height * PLANE_REACH}
-    raise ValueError(f"no shape for {obj.kind}")
+def within_budget(wanted: dict, budget: int) -> dict:
+    """Segment counts per kind ({kind: wanted counts}) whose triangles total at most
+    ``budget``: ``wanted`` itself if it fits, else every count scaled by the largest common
+    factor that fits (bisection; the total only grows with the factor)."""
+    def total(factor):
+        return sum(int(tessellation.triangle_count(kind.value, scaled_segments(w, factor)).sum())
+                   for kind, w in wanted.items())
+
+    if total(1.0) <= budget:
+        return {kind: scaled_segments(w, 1.0) for kind, w in wanted.items()}
+    if total(0.0) > budget:
+        count = sum(len(w) for w in wanted.values())
+        raise GeometryTooLarge(
+            f"the scene's {count} curved objects (spheres under non-uniform scales, cylinders, "
+            f"cones) need {total(0.0)} triangles even at {BUDGET_MIN_SEGMENTS} segments each, "
+            f"more than the tessellation budget of {budget} triangles")
+    fits, over = 0.0, 1.0
+    for _ in range(30):
+        mid = 0.5 * (fits + over)
+        fits, over = (mid, over) if total(mid) <= budget else (fits, mid)
+    return {kind: scaled_segments(w, fits) for kind, w in wanted.items()}
+
+
+def quadric_meshes(curved, model, options, mi) -> list:
+    """One smooth ``raytriangles`` mesh per surface holding every tessellated object of it.
+    ``curved``: [(surface id, kind, transforms (n, 4, 4))]."""
+    wanted = {}
+    for _, kind, m in curved:
+        wanted.setdefault(kind, []).append(wanted_segments(m, kind, model, options))
+    wanted = {kind: np.concatenate(w) for kind, w in wanted.items()}
+    counts = within_budget(wanted, options.tessellation_budget)
+    taken = {kind: 0 for kind in counts}
+    parts = {}
+    for surface_id, kind, m in curved:
+        segments = counts[kind][taken[kind]:taken[kind] + len(m)]
+        taken[kind] += len(m)
+        for count in np.unique(segments):
+            mesh = tessellation.placed(tessellation.template(kind.value, int(count)), m[segments == count])
+            parts.setdefault(surface_id, []).append(mesh)
+    return [world_mesh(tessellation.concatenated(meshes), mi) | {"bsdf": {"type": "ref", "id": surface_id}}
+            for surface_id, meshes in parts.items()]
+
+
+def world_mesh(mesh, mi) -> dict:
+    """A ``raytriangles`` dict of a world-space tessellation (smooth: with vertex normals)."""
+    return {"type": "raytriangles",
+            "positions": mi.Float(np.ascontiguousarray(mesh.positions, np.float32).ravel()),
+            "normals": mi.Float(np.ascontiguousarray(mesh.normals, np.float32).ravel()),
+            "texcoords": mi.Float(np.ascontiguousarray(mesh.texcoords, np.float32).ravel()),
+            "faces": mi.UInt32(np.ascontiguousarray(mesh.faces, np.uint32).ravel())}
 
 
 def uv_to_image(mi):
@@ -202,15 +299,21 @@ TRIANGLE_UV = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
 
 
 def triangle_mesh(objs, mi) -> dict:
-    """World-space corners of triangles, wound so the format's front side is preserved."""
-    positions, texcoords = [], []
+    """World-space corners of triangles, wound so the format's front side is preserved
+    (built per transform in bulk: corners (n, 3, 3) mapped by one matrix)."""
+    by_transform = {}
     for obj in objs:
-        m = matrix(obj)
-        corners = np.array(obj.vertices, dtype=np.float64) @ m[:3, :3].T + m[:3, 3]
+        by_transform.setdefault(obj.to_world, []).append(obj.vertices)
+    positions, texcoords = [], []
+    for to_world, vertices in by_transform.items():
+        m = np.array(to_world, dtype=np.float64)
+        corners = np.fromiter(chain.from_iterable(chain.from_iterable(vertices)), np.float64,
+                              count=9 * len(vertices)).reshape(-1, 3, 3)
+        corners = corners @ m[:3, :3].T + m[:3, 3]
+        # Mirroring maps the front side's normal by the inverse transpose, so the world
+        # winding must be reversed to keep it: the corners (0, 2, 1).
         order = [0, 2, 1] if np.linalg.det(m[:3, :3]) < 0 else [0, 1, 2]
-        positions.append(corners[order])
-        texcoords.append(TRIANGLE_UV[order])
-    positions = np.concatenate(positions).astype(np.float32)
-    texcoords = np.concatenate(texcoords).astype(np.float32)
-    return {"type": "raytriangles", "positions": mi.Float(positions.ravel()),
-            "texcoords": mi.Float(texcoords.ravel())}
+        positions.append(corners[:, order].astype(np.float32))
+        texcoords.append(np.broadcast_to(TRIANGLE_UV[order].astype(np.float32), (len(corners), 3, 2)))
+    return {"type": "raytriangles", "positions": mi.Float(np.concatenate(positions).ravel()),
+            "texcoords": mi.Float(np.concatenate(texcoords).ravel())}

@@ -72,13 +72,15 @@ def test_objects_share_their_material_by_reference(translate):
                   "material 0 1 0  1 1 0 1  0 0 1\n"
                   "translate 0 3 0\nsphere\n")              # mat2
     shapes = _shapes(d)
-    refs = {k: v["bsdf"] for k, v in shapes.items()}
-    assert all(r["type"] == "ref" for r in refs.values())
-    by_line = {int(k.rsplit("_", 1)[1]): r["id"] for k, r in refs.items()}
-    assert by_line == {2: "mat0", 4: "mat1", 5: "mat1", 6: "mat1", 7: "mat1", 10: "mat2"}
-    kinds = {int(k.rsplit("_", 1)[1]): v["type"] for k, v in shapes.items()}
-    assert kinds == {2: "sphere", 4: "sphere", 5: "raycylinder", 6: "raycone", 7: "rayplane",
-                     10: "sphere"}
+    assert all(v["bsdf"]["type"] == "ref" for v in shapes.values())
+    refs = {k: v["bsdf"]["id"] for k, v in shapes.items()}
+    kinds = {k: v["type"] for k, v in shapes.items()}
+    # Analytic spheres and planes one by one, named by line; the cylinder and the cone of
+    # mat1 merged into one tessellated mesh.
+    assert refs == {"sphere_2": "mat0", "sphere_4": "mat1", "quadrics_0": "mat1",
+                    "plane_7": "mat1", "sphere_10": "mat2"}
+    assert kinds == {"sphere_2": "sphere", "sphere_4": "sphere", "quadrics_0": "raytriangles",
+                     "plane_7": "rayplane", "sphere_10": "sphere"}
 
 
 def test_textured_surfaces_wrap_the_material(translate, tmp_path):
@@ -94,9 +96,14 @@ def test_textured_surfaces_wrap_the_material(translate, tmp_path):
                   "checkerboard 0.5\nplane\n"                # mat1 x checker 0.5
                   "sphere\n")                                # checker: planes only -> mat1
     shapes = _shapes(d)
-    by_line = {int(k.rsplit("_", 1)[1]): v["bsdf"]["id"] for k, v in shapes.items()}
-    assert by_line[4] == by_line[5] != by_line[7]
-    assert by_line[9] == "mat1" and by_line[12] == "mat1"
+    refs = {k: v["bsdf"]["id"] for k, v in shapes.items()}
+    # The cylinder (line 5) shares sphere 4's surface, the cone (line 9) is plain mat1:
+    # two merged meshes.
+    meshes = {refs[k] for k in shapes if k.startswith("quadrics_")}
+    assert meshes == {refs["sphere_4"], "mat1"} and len(shapes) == 6
+    assert refs["sphere_4"] != refs["sphere_7"]
+    assert refs["sphere_12"] == "mat1"
+    by_line = {4: refs["sphere_4"], 7: refs["sphere_7"], 11: refs["plane_11"]}
     surfaces = {k: v for k, v in d.items() if k.startswith("surface")}
     assert set(surfaces) == {by_line[4], by_line[7], by_line[11]}
     for key, surface in surfaces.items():
@@ -115,16 +122,20 @@ def test_textured_surfaces_wrap_the_material(translate, tmp_path):
 @pytest.mark.parametrize("steps, kind", [
     ("", "sphere"),
     ("rotateX 30\nrotateY -70\nscale 2 2 2\ntranslate 1 2 3\n", "sphere"),
-    ("scale 1 2 1\n", "rayellipsoid"),
-    ("scale 2 1 1\nrotateZ 30\nscale 1 1 3\n", "rayellipsoid"),   # sheared
-    ("rotateZ 30\nscale 1 1.0001 1\n", "rayellipsoid"),
+    ("scale 1 2 1\n", "raytriangles"),
+    ("scale 2 1 1\nrotateZ 30\nscale 1 1 3\n", "raytriangles"),   # sheared
+    ("rotateZ 30\nscale 1 1.0001 1\n", "raytriangles"),
+    ("scale -1 1 1\n", "raytriangles"),                            # mirrored
 ])
-def test_similarity_sphere_is_analytic_otherwise_an_ellipsoid_mesh(translate, steps, kind):
+def test_similarity_sphere_is_analytic_otherwise_a_smooth_mesh(translate, steps, kind):
     d = translate("light 1 1 1 ambient\n" + steps + "sphere\n")
     (shape,) = _shapes(d).values()
     assert shape["type"] == kind
-    if kind == "rayellipsoid":
-        assert shape["segments"] >= 48
+    if kind == "raytriangles":
+        from raymitsuba.tessellation import triangle_count
+
+        faces = np.array(shape["faces"]).reshape(-1, 3)
+        assert len(faces) >= triangle_count("sphere", 48) and "normals" in shape
         return
     # The analytic sphere's to_world: the unit sphere onto the transformed one, with its
     # pole (local +z, where Mitsuba's sphere puts it) on object +y (the format's pole).
