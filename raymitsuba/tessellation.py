@@ -219,9 +219,9 @@ def placed(mesh: Tessellation, to_world: np.ndarray) -> Tessellation:
     positions by M, normals by M^-T (renormalised), winding reversed where det M < 0.
     Returns (k V) vertices and (k F) faces, the copies one after another."""
     linear, offset = to_world[:, :3, :3], to_world[:, :3, 3]
-    positions = np.einsum("kij,vj->kvi", linear, mesh.positions) + offset[:, None, :]
-    normals = np.einsum("vj,kji->kvi", mesh.normals, np.linalg.inv(linear))  # (M^-T n) as rows
-    normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-30)
+    positions = mesh.positions @ linear.transpose(0, 2, 1) + offset[:, None, :]  # (k, V, 3)
+    normals = mesh.normals @ np.linalg.inv(linear)  # (M^-T n) as rows
+    normals /= np.maximum(np.sqrt(np.square(normals).sum(axis=-1, keepdims=True)), 1e-30)
     count = len(mesh.positions)
     corner_order = np.where(np.linalg.det(linear)[:, None] < 0, [0, 2, 1], [0, 1, 2])  # (k, 3)
     first = 3 * np.arange(len(mesh.faces))  # each face's first vertex (faces are 0 1 2, 3 4 5, ...)
@@ -230,3 +230,23 @@ def placed(mesh: Tessellation, to_world: np.ndarray) -> Tessellation:
     texcoords = np.broadcast_to(mesh.texcoords, (len(to_world),) + mesh.texcoords.shape)
     return Tessellation(positions.reshape(-1, 3), normals.reshape(-1, 3),
                         texcoords.reshape(-1, 2), faces.reshape(-1, 3))
+
+
+def merged(batches, chunk_vertices=1 << 20) -> Tessellation:
+    """One float32 mesh of many placed copies: ``batches`` is [(overlapping template, transforms
+    (k, 4, 4))]. Placed a chunk of objects at a time into preallocated arrays, so the float64
+    intermediates stay below ``chunk_vertices`` vertices whatever the scene's size."""
+    vertices = sum(len(t.positions) * len(m) for t, m in batches)
+    faces = sum(len(t.faces) * len(m) for t, m in batches)
+    out = Tessellation(np.empty((vertices, 3), np.float32), np.empty((vertices, 3), np.float32),
+                       np.empty((vertices, 2), np.float32), np.empty((faces, 3), np.uint32))
+    v0 = f0 = 0
+    for mesh, to_world in batches:
+        step = max(chunk_vertices // len(mesh.positions), 1)
+        for i in range(0, len(to_world), step):
+            part = placed(mesh, to_world[i:i + step])
+            v1, f1 = v0 + len(part.positions), f0 + len(part.faces)
+            out.positions[v0:v1], out.normals[v0:v1] = part.positions, part.normals
+            out.texcoords[v0:v1], out.faces[f0:f1] = part.texcoords, part.faces + v0
+            v0, f0 = v1, f1
+    return out

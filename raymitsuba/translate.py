@@ -27,13 +27,19 @@ wherever there are many):
 Tessellation density follows the object's projected size: a curved object whose
 bounding sphere spans r pixels gets m = pi sqrt(r / (2 e)) segments around, so its
 polygonal silhouette is within e = 0.05 pixel of the true one (clamped to
-[MIN_SEGMENTS, MAX_SEGMENTS], even). The **tessellation budget** bounds the memory:
-when the tessellated objects together would have more than
-``Options.tessellation_budget`` triangles, every count is scaled down by one common
-factor (the largest that fits; no count below BUDGET_MIN_SEGMENTS), trading silhouette
-accuracy (an error of about r pi^2 / (2 m^2) pixels) for memory; a scene that does not
-fit even at BUDGET_MIN_SEGMENTS is refused (:class:`GeometryTooLarge`) before any mesh
-is built.
+[MIN_SEGMENTS, MAX_SEGMENTS], even).
+
+The **tessellation budget** bounds the memory and the load time (Embree's BVH build is
+the largest cost per triangle): when the tessellated objects together would have more
+than ``Options.tessellation_budget`` triangles (TESSELLATION_BUDGET, 500,000: about
+80 MB of mesh arrays and BVH), every count is scaled down by one common factor, the
+largest that fits, trading silhouette accuracy (about r pi^2 / (2 m^2) pixels for an
+object of r pixels with m segments) for memory. In practice the budget first removes
+the margin of MIN_SEGMENTS on small objects (a 5-pixel object needs 22 segments for
+0.05 px, and gets 48 without the budget). No count goes below BUDGET_MIN_SEGMENTS (8); at
+that floor the budget gives way, up to ``Options.tessellation_limit`` triangles
+(TESSELLATION_LIMIT, 8 million: about 1.3 GB), past which the scene is refused with a
+:class:`GeometryTooLarge` error before any mesh is built.
 """
 
 from __future__ import annotations
@@ -50,8 +56,10 @@ from raymitsuba.model import Material, ObjectKind, Scene, SceneObject
 
 SILHOUETTE_ERROR_PX = 0.05
 MIN_SEGMENTS, MAX_SEGMENTS = 48, 768
-TESSELLATION_BUDGET = 2_000_000  # triangles of all tessellated objects together
-BUDGET_MIN_SEGMENTS = 12  # the budget never goes below this many segments around
+TESSELLATION_BUDGET = 500_000  # triangles of all tessellated objects together (soft)
+BUDGET_MIN_SEGMENTS = 8  # the budget never takes an object below this many segments around
+TESSELLATION_LIMIT = 8_000_000  # triangles past which a scene is refused (hard)
+BYTES_PER_TRIANGLE = 160  # merged mesh arrays (~108: 3 unshared vertices) and Embree's BVH
 PLANE_REACH = 1e6  # the plane mesh reaches this many camera heights away
 NEAR_CLIP, FAR_CLIP = 1e-4, 1e12
 
@@ -67,11 +75,12 @@ class Options:
     spp: int = 1
     max_depth: int = 5
     srgb: bool = False  # decode 8-bit textures from sRGB (and encode 8-bit output)
-    tessellation_budget: int = TESSELLATION_BUDGET
+    tessellation_budget: int = TESSELLATION_BUDGET  # see the module docstring
+    tessellation_limit: int = TESSELLATION_LIMIT
 
 
 class GeometryTooLarge(ValueError):
-    """The scene's curved objects cannot be tessellated within the budget."""
+    """The scene's curved objects cannot be tessellated within the hard limit."""
 
 
 def translate(model: Scene, options: Options | None = None, **kwargs) -> dict:
@@ -237,26 +246,30 @@ def scaled_segments(wanted, factor):
     return count + count % 2
 
 
-def within_budget(wanted: dict, budget: int) -> dict:
-    """Segment counts per kind ({kind: wanted counts}) whose triangles total at most
-    ``budget``: ``wanted`` itself if it fits, else every count scaled by the largest common
-    factor that fits (bisection; the total only grows with the factor)."""
+def within_budget(wanted: dict, budget: int, limit: int) -> dict:
+    """Segment counts per kind ({kind: wanted counts}) for a total of at most ``budget``
+    triangles: ``wanted`` itself if it fits, else every count scaled by the largest common
+    factor that fits (bisection: the total only grows with the factor), down to
+    BUDGET_MIN_SEGMENTS; at that floor the budget gives way up to ``limit``, past which
+    the scene is refused."""
     def total(factor):
         return sum(int(tessellation.triangle_count(kind.value, scaled_segments(w, factor)).sum())
                    for kind, w in wanted.items())
 
     if total(1.0) <= budget:
         return {kind: scaled_segments(w, 1.0) for kind, w in wanted.items()}
-    if total(0.0) > budget:
+    fits, over = 0.0, 1.0
+    if total(0.0) > limit:
         count = sum(len(w) for w in wanted.values())
         raise GeometryTooLarge(
-            f"the scene's {count} curved objects (spheres under non-uniform scales, cylinders, "
-            f"cones) need {total(0.0)} triangles even at {BUDGET_MIN_SEGMENTS} segments each, "
-            f"more than the tessellation budget of {budget} triangles")
-    fits, over = 0.0, 1.0
-    for _ in range(30):
-        mid = 0.5 * (fits + over)
-        fits, over = (mid, over) if total(mid) <= budget else (fits, mid)
+            f"too much geometry: the {count} curved objects (cylinders, cones, spheres under "
+            f"non-uniform scales) need {total(0.0)} triangles even at {BUDGET_MIN_SEGMENTS} "
+            f"segments each (about {total(0.0) * BYTES_PER_TRIANGLE / 1e9:.1f} GB), more than "
+            f"the limit of {limit}")
+    if total(0.0) <= budget:
+        for _ in range(30):
+            mid = 0.5 * (fits + over)
+            fits, over = (mid, over) if total(mid) <= budget else (fits, mid)
     return {kind: scaled_segments(w, fits) for kind, w in wanted.items()}
 
 
@@ -267,26 +280,24 @@ def quadric_meshes(curved, model, options, mi) -> list:
     for _, kind, m in curved:
         wanted.setdefault(kind, []).append(wanted_segments(m, kind, model, options))
     wanted = {kind: np.concatenate(w) for kind, w in wanted.items()}
-    counts = within_budget(wanted, options.tessellation_budget)
+    counts = within_budget(wanted, options.tessellation_budget, options.tessellation_limit)
     taken = {kind: 0 for kind in counts}
-    parts = {}
+    batches = {}  # surface id -> [(template, transforms)]
     for surface_id, kind, m in curved:
         segments = counts[kind][taken[kind]:taken[kind] + len(m)]
         taken[kind] += len(m)
         for count in np.unique(segments):
-            mesh = tessellation.placed(tessellation.template(kind.value, int(count)), m[segments == count])
-            parts.setdefault(surface_id, []).append(mesh)
-    return [world_mesh(tessellation.concatenated(meshes), mi) | {"bsdf": {"type": "ref", "id": surface_id}}
-            for surface_id, meshes in parts.items()]
+            batches.setdefault(surface_id, []).append(
+                (tessellation.template(kind.value, int(count)), m[segments == count]))
+    return [world_mesh(tessellation.merged(batch), mi) | {"bsdf": {"type": "ref", "id": surface_id}}
+            for surface_id, batch in batches.items()]
 
 
 def world_mesh(mesh, mi) -> dict:
-    """A ``raytriangles`` dict of a world-space tessellation (smooth: with vertex normals)."""
-    return {"type": "raytriangles",
-            "positions": mi.Float(np.ascontiguousarray(mesh.positions, np.float32).ravel()),
-            "normals": mi.Float(np.ascontiguousarray(mesh.normals, np.float32).ravel()),
-            "texcoords": mi.Float(np.ascontiguousarray(mesh.texcoords, np.float32).ravel()),
-            "faces": mi.UInt32(np.ascontiguousarray(mesh.faces, np.uint32).ravel())}
+    """A ``raytriangles`` dict of a world-space float32 tessellation (smooth: with vertex normals)."""
+    return {"type": "raytriangles", "positions": mi.Float(mesh.positions.ravel()),
+            "normals": mi.Float(mesh.normals.ravel()), "texcoords": mi.Float(mesh.texcoords.ravel()),
+            "faces": mi.UInt32(mesh.faces.ravel())}
 
 
 def uv_to_image(mi):
