@@ -418,6 +418,7 @@ class _Parser:
         self.stack: List[Matrix4] = [IDENTITY]  # composites, see the module docstring
         self.stack_magnitude: List[float] = [1.0]  # largest |entry| of each composite
         self.objects: List[SceneObject] = []
+        self.corners: Dict[Vec3, Vec3] = {}  # each distinct triangle corner, once (see _triangle)
         self.lights: List[Light] = []
         self.first_object_at = (0, "")  # (line, text) of the first object, for a warning
         self.suggestions: Dict[str, str] = {}
@@ -689,6 +690,10 @@ class _Parser:
         if values is None:
             return
         p0, p1, p2 = values[0:3], values[3:6], values[6:9]
+        # A mesh's corners repeat: keep one tuple per distinct corner (a third of the memory
+        # of a large mesh's model), equal values (0.0 and -0.0 are equal: a zero may change sign).
+        corner = self.corners.setdefault
+        p0, p1, p2 = corner(p0, p0), corner(p1, p1), corner(p2, p2)
         e1 = (p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2])
         e2 = (p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2])
         n = _cross(e1, e2)
