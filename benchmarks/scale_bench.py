@@ -84,7 +84,7 @@ def spheres(n):
         r, g, b = 0.3 + 0.7 * (k % 7) / 6, 0.3 + 0.7 * (k % 5) / 4, 0.3 + 0.7 * (k % 3) / 2
         kr = 0.3 if k % 4 == 0 else 0.0
         lines.append(f"material {r:.3g} {g:.3g} {b:.3g}  0.2 0.7 0.3 30  {kr} 0 1\n"
-                     f"translate {x:g} {y:g} 0\nscale 0.4 0.4 0.4\nsphere\npop\npop\n")
+                     f"scale 0.4 0.4 0.4\ntranslate {x:g} {y:g} 0\nsphere\npop\npop\n")
     return "".join(lines)
 
 
@@ -105,8 +105,9 @@ def quadrics(n):
         for k in range(m, n, len(QUADRIC_MATERIALS)):
             x, y = at(k)
             sx, sy, sz = 0.3 + 0.1 * (k % 3), 0.25 + 0.15 * (k % 4) / 3, 0.35
-            lines.append(f"translate {x:g} {y:g} 0\nrotateX {17 * k % 90 - 45}\n"
-                         f"rotateY {29 * k % 360}\nscale {sx:.3g} {sy:.3g} {sz:.3g}\n"
+            # (the first transform line is applied first: scale, rotate, then move into place)
+            lines.append(f"scale {sx:.3g} {sy:.3g} {sz:.3g}\nrotateY {29 * k % 360}\n"
+                         f"rotateX {17 * k % 90 - 45}\ntranslate {x:g} {y:g} 0\n"
                          f"{QUADRIC_KINDS[k % 3]}\npop\npop\npop\npop\n")
     return "".join(lines)
 

@@ -189,3 +189,118 @@ def test_translated_dict_loads_and_renders(mitsuba, translate):
     np.testing.assert_allclose(image[4, 4], [0.5, 0.25, 1.0], atol=1e-7)
     o = np.array([0.0, 0, 5])
     assert np.isnan(intersect_sphere(o, normalize([1.0, 1, -5]))) and image[0, 0].sum() == 0
+
+
+# -- geometry in bulk ----------------------------------------------------------------------------
+TRANSFORMS = ["", "translate 1 2 3\n", "scale -1 1 1\n", "rotateX 30\nscale 2 -0.5 1\n",
+              "rotateY 45\nscale -1 -2 -3\ntranslate 0 1 0\n"]  # two mirror, one does not
+
+
+def _per_triangle(model):
+    """The translator's triangles one by one, as it did before building them in bulk: world
+    corners in winding order and their texture coordinates, one row per triangle."""
+    rows = []
+    for obj in model.objects:
+        m = np.array(obj.to_world)
+        corners = np.array(obj.vertices) @ m[:3, :3].T + m[:3, 3]
+        order = [0, 2, 1] if np.linalg.det(m[:3, :3]) < 0 else [0, 1, 2]
+        uv = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+        rows.append(np.concatenate([corners[order].ravel(), uv[order].ravel()]))
+    return np.array(rows)
+
+
+def test_triangles_in_bulk_match_one_by_one(translate):
+    """A few hundred triangles under mirroring and non-mirroring transforms, interleaved:
+    the bulk mesh has exactly the corners (float32), winding and texture coordinates of the
+    triangle-by-triangle construction (as a set: the bulk groups them by transform)."""
+    from raymitsuba.parser import parse_text
+
+    rng = np.random.default_rng(3)
+    lines = ["light 1 1 1 ambient\n"]
+    for k in range(300):
+        lines.append(TRANSFORMS[k % len(TRANSFORMS)])
+        lines.append("triangle " + " ".join(f"{v:.4f}" for v in rng.uniform(-2, 2, 9)) + "\n")
+        lines.append("reset\n")
+    text = "".join(lines)
+    (mesh,) = [v for k, v in translate(text).items() if k.startswith("triangles_")]
+    got = np.concatenate([np.array(mesh["positions"]).reshape(-1, 9),
+                          np.array(mesh["texcoords"]).reshape(-1, 6)], axis=1)
+    want = _per_triangle(parse_text(text))
+    want[:, :9] = want[:, :9].astype(np.float32)
+    assert got.shape == want.shape == (300, 15)
+    np.testing.assert_array_equal(got[np.lexsort(got.T)], want[np.lexsort(want.T)])
+
+
+def test_placed_copies_match_one_by_one_and_face_outward():
+    """Placing a template under k transforms at once gives each object's own placement, and
+    every face's right-hand-rule normal agrees with its vertex normals (outward) in the
+    world, mirrored or not; the vertices lie on the transformed primitive."""
+    from raymitsuba import tessellation
+    from conftest import rotation, scaling, stack, translation
+
+    transforms = np.array([stack(scaling(1, 2, 0.5), rotation("x", 30), translation(1, 2, 3)),
+                           stack(scaling(-1, 1, 1), rotation("y", 70)),
+                           stack(scaling(0.3, -0.2, -1.5), translation(-4, 0, 1))])
+    for kind in ("sphere", "cylinder", "cone"):
+        template = tessellation.template(kind, 16)
+        together = tessellation.placed(template, transforms)
+        for k, m in enumerate(transforms):
+            alone = tessellation.placed(template, m[None])
+            v = slice(k * len(template.positions), (k + 1) * len(template.positions))
+            np.testing.assert_array_equal(together.positions[v], alone.positions)
+            np.testing.assert_array_equal(together.normals[v], alone.normals)
+            f = slice(k * len(template.faces), (k + 1) * len(template.faces))
+            np.testing.assert_array_equal(together.faces[f] - v.start, alone.faces)
+        p = together.positions[together.faces]
+        face_n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        assert np.all(np.einsum("ij,ij->i", face_n, together.normals[together.faces].sum(1)) > 0)
+        merged = tessellation.merged([(template, transforms)])
+        np.testing.assert_allclose(merged.positions, together.positions, rtol=1e-6, atol=1e-6)
+        np.testing.assert_array_equal(merged.faces, together.faces)
+    sphere = tessellation.placed(tessellation.template("sphere", 16), transforms[:1])
+    local = (sphere.positions - transforms[0, :3, 3]) @ np.linalg.inv(transforms[0, :3, :3]).T
+    radius = np.linalg.norm(local, axis=1)  # on the unit sphere, up to chords and the overlap
+    assert np.all(radius < 1.0 + 2e-4) and np.all(radius > np.cos(np.pi / 16) - 1e-3)
+
+
+@pytest.mark.parametrize("kind", ["sphere", "cylinder", "cone"])
+def test_triangle_counts_in_closed_form(kind):
+    from raymitsuba import tessellation
+
+    for m in (8, 12, 30, 48, 130, 768):
+        assert len(tessellation.template(kind, m).faces) == tessellation.triangle_count(kind, m)
+
+
+def _mesh_faces(d):
+    return sum(np.array(v["faces"]).size // 3 for k, v in d.items() if k.startswith("quadrics_"))
+
+
+QUADRICS = "".join(f"scale 1 2 1\ntranslate {x} 0 -10\n{kind}\nreset\n"
+                   for x in range(-6, 7) for kind in ("sphere", "cylinder", "cone"))
+
+
+def test_tessellation_budget_scales_segment_counts_down(translate):
+    """Over the budget, every object's segment count is scaled down by one factor until the
+    total fits; below it, the counts are those of the silhouette target."""
+    free = _mesh_faces(translate(QUADRICS, width=64, height=64))
+    budget = free // 3
+    d = translate(QUADRICS, width=64, height=64, tessellation_budget=budget)
+    assert budget * 0.8 < _mesh_faces(d) <= budget
+    # The largest count scaled down still fits: halving the budget again halves about twice.
+    smaller = _mesh_faces(translate(QUADRICS, width=64, height=64, tessellation_budget=budget // 4))
+    assert smaller <= budget // 4
+
+
+def test_tessellation_budget_gives_way_at_the_floor_then_refuses(translate):
+    """At BUDGET_MIN_SEGMENTS the budget gives way up to the limit; past the limit the scene
+    is refused with one line saying why, before any mesh is built."""
+    from raymitsuba.tessellation import triangle_count
+    from raymitsuba.translate import BUDGET_MIN_SEGMENTS, GeometryTooLarge
+
+    floor = 13 * sum(int(triangle_count(k, BUDGET_MIN_SEGMENTS)) for k in ("sphere", "cylinder", "cone"))
+    d = translate(QUADRICS, tessellation_budget=10, tessellation_limit=floor)
+    assert _mesh_faces(d) == floor
+    with pytest.raises(GeometryTooLarge) as info:
+        translate(QUADRICS, tessellation_budget=10, tessellation_limit=floor - 1)
+    message = str(info.value)
+    assert "\n" not in message and f"need {floor} triangles" in message and "39 curved" in message
