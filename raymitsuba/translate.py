@@ -181,25 +181,41 @@ def shapes(model, options, surfaces, mi) -> dict:
     groups = {}
     for obj in model.objects:
         groups.setdefault((obj.kind, surfaces.id(obj)), []).append(obj)
-    out, curved = {}, []
+    out, triangles, curved = {}, [], []
     for (kind, surface_id), objs in groups.items():
         ref = {"type": "ref", "id": surface_id}
         if kind is ObjectKind.PLANE:
             for obj in objs:
                 out[f"plane_{obj.line}"] = plane(obj, model, mi) | {"bsdf": ref}
-            continue
-        if kind is ObjectKind.TRIANGLE:
-            out[f"triangles_{len(out)}"] = triangle_mesh(objs, mi) | {"bsdf": ref}
-            continue
-        m = matrices(objs)
-        exact = analytic_sphere(m) if kind is ObjectKind.SPHERE else np.zeros(len(objs), bool)
-        for obj, to_world in zip((o for o, e in zip(objs, exact) if e), m[exact]):
-            out[f"sphere_{obj.line}"] = {"type": "sphere", "bsdf": ref,
-                                         "to_world": mi.ScalarTransform4f(to_world @ Z_TO_Y)}
-        if not exact.all():
-            curved.append((surface_id, kind, m[~exact]))
-    meshes = quadric_meshes(curved, model, options, mi)
+        elif kind is ObjectKind.TRIANGLE:
+            triangles.append(triangle_mesh(objs, mi) | {"bsdf": ref})
+        else:
+            curved.append((surface_id, kind, objs))
+    spheres, tessellated = analytic_or_tessellated(curved)
+    for obj, to_world, surface_id in spheres:
+        out[f"sphere_{obj.line}"] = {"type": "sphere", "to_world": mi.ScalarTransform4f(to_world),
+                                     "bsdf": {"type": "ref", "id": surface_id}}
+    out |= {f"triangles_{k}": mesh for k, mesh in enumerate(triangles)}
+    meshes = quadric_meshes(tessellated, model, options, mi)
     return out | {f"quadrics_{k}": mesh for k, mesh in enumerate(meshes)}
+
+
+def analytic_or_tessellated(curved):
+    """Split the curved objects ([(surface id, kind, objects)]) into analytic spheres
+    [(object, Mitsuba sphere's to_world as rows, surface id)] and the tessellated rest
+    [(surface id, kind, transforms (n, 4, 4))], classifying all of them at once."""
+    objs = [obj for _, _, group in curved for obj in group]
+    m = matrices(objs)
+    exact = np.array([obj.kind is ObjectKind.SPHERE for obj in objs], bool) & analytic_sphere(m)
+    rows = iter((m[exact] @ Z_TO_Y).tolist())
+    spheres, tessellated, start = [], [], 0
+    for surface_id, kind, group in curved:
+        m_group, exact_group = m[start:start + len(group)], exact[start:start + len(group)]
+        start += len(group)
+        spheres += [(obj, next(rows), surface_id) for obj, e in zip(group, exact_group) if e]
+        if not exact_group.all():
+            tessellated.append((surface_id, kind, m_group[~exact_group]))
+    return spheres, tessellated
 
 
 def matrices(objs) -> np.ndarray:
