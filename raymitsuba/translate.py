@@ -31,13 +31,13 @@ polygonal silhouette is within e = 0.05 pixel of the true one (clamped to
 
 The **tessellation budget** bounds the memory and the load time (Embree's BVH build is
 the largest cost per triangle): when the tessellated objects together would have more
-than ``Options.tessellation_budget`` triangles (TESSELLATION_BUDGET, 500,000: about
-80 MB of mesh arrays and BVH), every count is scaled down by one common factor, the
-largest that fits, trading silhouette accuracy (about r pi^2 / (2 m^2) pixels for an
-object of r pixels with m segments) for memory. In practice the budget first removes
-the margin of MIN_SEGMENTS on small objects (a 5-pixel object needs 22 segments for
-0.05 px, and gets 48 without the budget). No count goes below BUDGET_MIN_SEGMENTS (8); at
-that floor the budget gives way, up to ``Options.tessellation_limit`` triangles
+than ``Options.tessellation_budget`` triangles (TESSELLATION_BUDGET, 250,000: about 40 MB
+of mesh arrays and BVH, 0.4 s of load), every count is scaled down by one common factor,
+the largest that fits, trading silhouette accuracy (about r pi^2 / (2 m^2) pixels for an
+object of r pixels with m segments) for memory and time. In practice the budget first
+removes the margin of MIN_SEGMENTS on small objects (a 5-pixel object needs 22 segments
+for 0.05 px, and gets 48 without the budget). No count goes below BUDGET_MIN_SEGMENTS (8);
+at that floor the budget gives way, up to ``Options.tessellation_limit`` triangles
 (TESSELLATION_LIMIT, 8 million: about 1.3 GB), past which the scene is refused with a
 :class:`GeometryTooLarge` error before any mesh is built.
 """
@@ -56,7 +56,7 @@ from raymitsuba.model import Material, ObjectKind, Scene, SceneObject
 
 SILHOUETTE_ERROR_PX = 0.05
 MIN_SEGMENTS, MAX_SEGMENTS = 48, 768
-TESSELLATION_BUDGET = 500_000  # triangles of all tessellated objects together (soft)
+TESSELLATION_BUDGET = 250_000  # triangles of all tessellated objects together (soft)
 BUDGET_MIN_SEGMENTS = 8  # the budget never takes an object below this many segments around
 TESSELLATION_LIMIT = 8_000_000  # triangles past which a scene is refused (hard)
 BYTES_PER_TRIANGLE = 160  # merged mesh arrays (~108: 3 unshared vertices) and Embree's BVH
