@@ -178,11 +178,12 @@ BOUNDING_RADIUS = {ObjectKind.SPHERE: 1.0, ObjectKind.CYLINDER: math.sqrt(1.25),
 def shapes(model, options, surfaces, mi) -> dict:
     """Every object's shape: analytic spheres and planes one by one, the rest merged per
     surface (objects grouped by (kind, surface) in one pass, then built in bulk)."""
-    groups = {}
+    groups = {}  # by kind and surface: (kind, material, texture, checker)
     for obj in model.objects:
-        groups.setdefault((obj.kind, surfaces.id(obj)), []).append(obj)
+        groups.setdefault((obj.kind, obj.material, obj.texture, obj.checker), []).append(obj)
     out, triangles, curved = {}, [], []
-    for (kind, surface_id), objs in groups.items():
+    for (kind, *_), objs in groups.items():
+        surface_id = surfaces.id(objs[0])
         ref = {"type": "ref", "id": surface_id}
         if kind is ObjectKind.PLANE:
             for obj in objs:
@@ -328,9 +329,14 @@ TRIANGLE_UV = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
 def triangle_mesh(objs, mi) -> dict:
     """World-space corners of triangles, wound so the format's front side is preserved
     (built per transform in bulk: corners (n, 3, 3) mapped by one matrix)."""
-    by_transform = {}
-    for obj in objs:
-        by_transform.setdefault(obj.to_world, []).append(obj.vertices)
+    transforms = list(map(operator.attrgetter("to_world"), objs))
+    vertices = list(map(operator.attrgetter("vertices"), objs))
+    if transforms.count(transforms[0]) == len(transforms):  # the common case: one transform
+        by_transform = {transforms[0]: vertices}
+    else:
+        by_transform = {}
+        for to_world, corners in zip(transforms, vertices):
+            by_transform.setdefault(to_world, []).append(corners)
     positions, texcoords = [], []
     for to_world, vertices in by_transform.items():
         m = np.array(to_world, dtype=np.float64)
