@@ -35,7 +35,7 @@ than ``Options.tessellation_budget`` triangles (TESSELLATION_BUDGET, 250,000: ab
 of mesh arrays and BVH, 0.4 s of load), every count is scaled down by one common factor,
 the largest that fits, trading silhouette accuracy (about r pi^2 / (2 m^2) pixels for an
 object of r pixels with m segments) for memory and time. In practice the budget first
-removes the margin of MIN_SEGMENTS on small objects (a 5-pixel object needs 22 segments
+removes the margin of MIN_SEGMENTS on small objects (a 5-pixel object needs 23 segments
 for 0.05 px, and gets 48 without the budget). No count goes below BUDGET_MIN_SEGMENTS (8);
 at that floor the budget gives way, up to ``Options.tessellation_limit`` triangles
 (TESSELLATION_LIMIT, 8 million: about 1.3 GB), past which the scene is refused with a
