@@ -9,15 +9,12 @@ plugin name        kind       file
 ``raychecker``     texture    ``checkerboard.py``: the plane checkerboard
 ``raylight``       emitter    ``light.py``: ambient/point/directional/spot
 ``raybackground``  emitter    ``background.py``: the background color
-``rayellipsoid``   shape      ``ellipsoid.py``: sphere under any transform
-``raycylinder``    shape      ``cylinder.py``: closed cylinder
-``raycone``        shape      ``cone.py``: closed cone
 ``rayplane``       shape      ``plane.py``: the infinite plane
-``raytriangles``   shape      ``triangles.py``: merged triangles
+``raytriangles``   shape      ``triangles.py``: a world-space mesh from arrays
 =================  =========  ===============================================
 
 Modules whose names start with ``_`` are pieces shared by plugins, not plugins:
-``_mesh.py`` (tessellations to meshes), and the Whitted integrator's
+``_mesh.py`` (an object-space tessellation to a mesh), and the Whitted integrator's
 ``_camera.py`` (camera rays, box filter), ``_protocol.py`` (what it reads from
 the plugins), ``_surfaces.py`` (the surface table), ``_hits.py`` (the geometry
 table: surface interactions by lookup), ``_lift.py`` (the terminator lift) and
@@ -36,8 +33,7 @@ def register():
 
     if _registered == mi.variant():
         return
-    from . import (background, checkerboard, cone, cylinder, ellipsoid, light, phong, plane,
-                   textured, triangles, whitted)
+    from . import background, checkerboard, light, phong, plane, textured, triangles, whitted
 
     mi.register_integrator("raywhitted", lambda props: whitted.Whitted(props))
     mi.register_bsdf("rayphong", lambda props: phong.Phong(props))
@@ -45,9 +41,6 @@ def register():
     mi.register_texture("raychecker", lambda props: checkerboard.Checkerboard(props))
     mi.register_emitter("raylight", lambda props: light.Light(props))
     mi.register_emitter("raybackground", lambda props: background.Background(props))
-    mi.register_shape("rayellipsoid", lambda props: ellipsoid.Ellipsoid(props))
-    mi.register_shape("raycylinder", lambda props: cylinder.Cylinder(props))
-    mi.register_shape("raycone", lambda props: cone.Cone(props))
     mi.register_shape("rayplane", lambda props: plane.Plane(props))
     mi.register_shape("raytriangles", lambda props: triangles.Triangles(props))
     _registered = mi.variant()

@@ -1,30 +1,40 @@
-"""``raytriangles``: the .RAY triangles that share one surface, merged into one mesh.
+"""``raytriangles``: a world-space triangle mesh given as arrays; the translator's merged meshes.
 
-The translator gives world-space corners already oriented: the front side of
-each triangle (right-hand rule on its object-space corners, carried to the
-world by the inverse transpose of its transform) is the side its world-space
-winding points to. Faces are flat (no vertex normals).
+The translator builds every mesh in bulk (all the ``triangle`` lines of one surface;
+all the tessellated spheres, cylinders and cones of one surface) and hands the
+arrays over; this plugin only wraps them in an ``mi.Mesh``, without copying.
 
-Texture coordinates: (0, 0), (1, 0), (0, 1) at the first, second and third
-corner as written in the file.
+The winding is the translator's: for ``triangle`` lines the front side of each
+triangle (right-hand rule on its object-space corners, carried to the world by the
+inverse transpose of its transform) is the side its world-space winding points to;
+for tessellations, the outward side (see ``raymitsuba/tessellation.py``).
 
-Parameters: ``positions`` (mi.Float, x y z of each corner, 9 per triangle, world
-space); ``texcoords`` (mi.Float, u v of each corner, 6 per triangle).
+Parameters:
+
+* ``positions`` (mi.Float): x y z of each vertex, world space;
+* ``texcoords`` (mi.Float): u v of each vertex;
+* ``faces`` (mi.UInt32, optional): three vertex indices per triangle; default: the
+  vertices taken three by three (0 1 2, 3 4 5, ...);
+* ``normals`` (mi.Float, optional): x y z unit vertex normals; given, the mesh is
+  smooth-shaded; absent, its faces are flat.
 """
 
-import numpy as np
+import drjit as dr
 import mitsuba as mi
 
 
 class Triangles(mi.Mesh):
     def __init__(self, props):
-        positions = np.asarray(props.get("positions").numpy(), np.float32).reshape(-1, 3)
-        texcoords = np.asarray(props.get("texcoords").numpy(), np.float32).reshape(-1, 2)
-        count = len(positions) // 3
-        mi.Mesh.__init__(self, "triangles", len(positions), count, props,
-                         has_vertex_normals=False, has_vertex_texcoords=True)
+        positions = props.get("positions")
+        vertex_count = dr.width(positions) // 3
+        faces = props.get("faces") if "faces" in props else dr.arange(mi.UInt32, vertex_count)
+        smooth = "normals" in props
+        mi.Mesh.__init__(self, "triangles", vertex_count, dr.width(faces) // 3, props,
+                         has_vertex_normals=smooth, has_vertex_texcoords=True)
         params = mi.traverse(self)
-        params["vertex_positions"] = mi.Float(positions.ravel())
-        params["faces"] = mi.UInt32(np.arange(3 * count, dtype=np.uint32))
-        params["vertex_texcoords"] = mi.Float(texcoords.ravel())
+        params["vertex_positions"] = positions
+        params["faces"] = faces
+        if smooth:
+            params["vertex_normals"] = props.get("normals")
+        params["vertex_texcoords"] = props.get("texcoords")
         params.update()

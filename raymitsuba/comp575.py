@@ -28,7 +28,7 @@ from raymitsuba.geometry import (apply, cross, magnitude_if_usable, rotated, sca
                                  translated)
 from raymitsuba.lexer import COMP575, before_comment, line_tokens, spans
 from raymitsuba.model import (IDENTITY, Camera, Matrix4, ObjectKind, Scene, SceneObject,
-                              Texture)
+                              Texture, Vec3)
 from raymitsuba.textures import TextureFiles
 
 #: Below this, entries of a matrix times coordinates can never overflow a double.
@@ -56,6 +56,7 @@ class Comp575Parser(SceneBuilder):
         self.stack: List[Matrix4] = [IDENTITY]  # composites, see the module docstring
         self.stack_magnitude: List[float] = [1.0]  # largest |entry| of each composite
         self.suggestions: Dict[str, str] = {}
+        self.corners: Dict[Vec3, Vec3] = {}  # each distinct triangle corner, once (see _triangle)
         self._ln = 0
         self._line = ""
         handlers = {
@@ -126,6 +127,10 @@ class Comp575Parser(SceneBuilder):
         if values is None:
             return
         p0, p1, p2 = values[0:3], values[3:6], values[6:9]
+        # A mesh's corners repeat: keep one tuple per distinct corner (a third of the memory
+        # of a large mesh's model), equal values (0.0 and -0.0 are equal: a zero may change sign).
+        corner = self.corners.setdefault
+        p0, p1, p2 = corner(p0, p0), corner(p1, p1), corner(p2, p2)
         e1 = (p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2])
         e2 = (p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2])
         n = cross(e1, e2)

@@ -10,17 +10,20 @@ command means (the parser already did). The dict is inspectable and is what
 * ``light{j}``: the j-th ``light`` line, a ``raylight`` emitter;
 * ``background``: a ``raybackground`` emitter;
 * ``sensor``, ``integrator`` (``raywhitted``);
-* shapes ``{kind}_{line}`` (``{kind}_{line}_{n}`` for the n-th object when a MIT 6.837
-  line holds several; ``triangles_{k}`` for merged triangles, ``mesh{k}``) and
-  textured surfaces ``surface{k}`` (``raytextured`` wrapping ``mat{i}``).
+* shapes ``sphere_{line}``, ``plane_{line}`` (``{kind}_{line}_{n}`` for the n-th object
+  when a MIT 6.837 line holds several), ``triangles_{k}`` and ``quadrics_{k}`` (merged
+  meshes, one per surface), ``mesh{k}`` (MIT 6.837 mesh blocks), and textured surfaces
+  ``surface{k}`` (``raytextured`` wrapping ``mat{i}``).
 
-Geometry choices (see the shape plugins for their tessellations):
+Geometry choices (the work is linear in the number of objects, done in bulk with numpy
+wherever there are many):
 
 * sphere: Mitsuba's analytic ``sphere`` when the transform is a similarity
-  without mirroring (exact), else a ``rayellipsoid`` mesh;
-* cylinder, cone: ``raycylinder`` / ``raycone`` meshes;
+  without mirroring (exact), else tessellated (below);
+* cylinder, cone, and the other spheres: tessellated (see :mod:`raymitsuba.tessellation`),
+  all those of one surface merged into one smooth ``raytriangles`` mesh, ``quadrics_{k}``;
 * plane: ``rayplane``, rings centred under the camera out past the horizon;
-* triangles: one ``raytriangles`` mesh per surface (material and texture);
+* triangles: one flat ``raytriangles`` mesh per surface, ``triangles_{k}``.
 * MIT 6.837 mesh blocks: one ``raytriangles`` mesh ``mesh{k}`` per mesh of the model,
   its corners gathered in bulk with numpy (:func:`mesh_shapes`).
 
@@ -30,20 +33,40 @@ The camera's vertical field of view for the image's aspect comes from
 Tessellation density follows the object's projected size: a curved object whose
 bounding sphere spans r pixels gets m = pi sqrt(r / (2 e)) segments around, so its
 polygonal silhouette is within e = 0.05 pixel of the true one (clamped to
-[MIN_SEGMENTS, MAX_SEGMENTS]).
+[MIN_SEGMENTS, MAX_SEGMENTS], even).
+
+The **tessellation budget** bounds the memory and the load time (Embree's BVH build is
+the largest cost per triangle): when the tessellated objects together would have more
+than ``Options.tessellation_budget`` triangles (TESSELLATION_BUDGET, 250,000: about 40 MB
+of mesh arrays and BVH, 0.4 s of load), every count is scaled down by one common factor,
+the largest that fits, trading silhouette accuracy (about r pi^2 / (2 m^2) pixels for an
+object of r pixels with m segments) for memory and time. In practice the budget first
+removes the margin of MIN_SEGMENTS on small objects (a 5-pixel object needs 23 segments
+for 0.05 px, and gets 48 without the budget). No count goes below BUDGET_MIN_SEGMENTS (8);
+at that floor the budget gives way, up to ``Options.tessellation_limit`` triangles
+(TESSELLATION_LIMIT, 8 million: about 1.3 GB), past which the scene is refused with a
+:class:`GeometryTooLarge` error before any mesh is built.
 """
 
 from __future__ import annotations
 
+import collections
 import math
+import operator
+from itertools import chain
 from dataclasses import dataclass
 
 import numpy as np
 
+from raymitsuba import tessellation
 from raymitsuba.model import Material, ObjectKind, Scene, SceneObject
 
 SILHOUETTE_ERROR_PX = 0.05
 MIN_SEGMENTS, MAX_SEGMENTS = 48, 768
+TESSELLATION_BUDGET = 250_000  # triangles of all tessellated objects together (soft)
+BUDGET_MIN_SEGMENTS = 8  # the budget never takes an object below this many segments around
+TESSELLATION_LIMIT = 8_000_000  # triangles past which a scene is refused (hard)
+BYTES_PER_TRIANGLE = 160  # merged mesh arrays (~108: 3 unshared vertices) and Embree's BVH
 PLANE_REACH = 1e6  # the plane mesh reaches this many camera heights away
 NEAR_CLIP, FAR_CLIP = 1e-4, 1e12
 
@@ -59,6 +82,12 @@ class Options:
     spp: int = 1
     max_depth: int = 5
     srgb: bool = False  # decode 8-bit textures from sRGB (and encode 8-bit output)
+    tessellation_budget: int = TESSELLATION_BUDGET  # see the module docstring
+    tessellation_limit: int = TESSELLATION_LIMIT
+
+
+class GeometryTooLarge(ValueError):
+    """The scene's curved objects cannot be tessellated within the hard limit."""
 
 
 def translate(model: Scene, options: Options | None = None, **kwargs) -> dict:
@@ -75,20 +104,10 @@ def translate(model: Scene, options: Options | None = None, **kwargs) -> dict:
     for light in model.lights:
         scene[f"light{light.index}"] = emitter(light, mi)
     surfaces = Surfaces(options, mi)
-    shapes, triangles = {}, {}
-    for i, obj in enumerate(model.objects):
-        ref = surfaces.ref(obj)
-        if obj.kind is ObjectKind.TRIANGLE:
-            triangles.setdefault(ref["id"], []).append(obj)
-        else:
-            name = f"{obj.kind.value}_{obj.line}"
-            name = f"{name}_{i}" if name in shapes else name  # MIT 6.837: several on a line
-            shapes[name] = shape(obj, model, options, mi) | {"bsdf": ref}
-    for k, (surface_id, objs) in enumerate(triangles.items()):
-        shapes[f"triangles_{k}"] = triangle_mesh(objs, mi) | {"bsdf": {"type": "ref", "id": surface_id}}
-    shapes |= mesh_shapes(model, mi)
+    objects = shapes(model, options, surfaces, mi)
+    objects |= mesh_shapes(model, mi)
     # Textured surfaces reference the materials and are referenced by the shapes.
-    return scene | surfaces.dicts | shapes
+    return scene | surfaces.dicts | objects
 
 
 def rgb(color, mi):
@@ -138,9 +157,10 @@ class Surfaces:
         self.ids: dict = {}
         self.dicts: dict = {}
 
-    def ref(self, obj: SceneObject) -> dict:
+    def id(self, obj: SceneObject) -> str:
+        """The id of the BSDF of ``obj``'s surface (made on first use)."""
         if obj.texture is None and obj.checker is None:
-            return {"type": "ref", "id": f"mat{obj.material}"}
+            return f"mat{obj.material}"
         key = (obj.material, obj.texture.path if obj.texture else None, obj.checker)
         if key not in self.ids:
             surface_id = f"surface{len(self.ids)}"
@@ -154,51 +174,169 @@ class Surfaces:
             if obj.checker is not None:
                 surface["checker"] = {"type": "raychecker", "size": float(obj.checker)}
             self.dicts[surface_id] = surface
-        return {"type": "ref", "id": self.ids[key]}
+        return self.ids[key]
 
 
 # -- shapes -------------------------------------------------------------------------------------
-def matrix(obj):
-    return np.array(obj.to_world, dtype=np.float64)
+CURVED = (ObjectKind.SPHERE, ObjectKind.CYLINDER, ObjectKind.CONE)
+BOUNDING_RADIUS = {ObjectKind.SPHERE: 1.0, ObjectKind.CYLINDER: math.sqrt(1.25),
+                   ObjectKind.CONE: math.sqrt(1.25)}  # of the primitive in object space
 
 
-def is_similarity(linear):
-    """Rotation times a positive uniform scale (no mirroring, no shear)."""
-    gram = linear.T @ linear
-    scale2 = np.trace(gram) / 3.0
-    return np.linalg.det(linear) > 0 and np.allclose(gram, scale2 * np.eye(3), rtol=0, atol=1e-9 * scale2)
+def shapes(model, options, surfaces, mi) -> dict:
+    """Every object's shape: analytic spheres and planes one by one, the rest merged per
+    surface (objects grouped by (kind, surface) in one pass, then built in bulk)."""
+    groups = {}  # by kind and surface: (kind, material, texture, checker)
+    for obj in model.objects:
+        groups.setdefault((obj.kind, obj.material, obj.texture, obj.checker), []).append(obj)
+    out, triangles, curved = {}, [], []
+    for (kind, *_), objs in groups.items():
+        surface_id = surfaces.id(objs[0])
+        ref = {"type": "ref", "id": surface_id}
+        if kind is ObjectKind.PLANE:
+            for obj in objs:
+                out[f"plane_{obj.line}"] = plane(obj, model, mi) | {"bsdf": ref}
+        elif kind is ObjectKind.TRIANGLE:
+            triangles.append(triangle_mesh(objs, mi) | {"bsdf": ref})
+        else:
+            curved.append((surface_id, kind, objs))
+    spheres, tessellated = analytic_or_tessellated(curved)
+    names = ShapeNames()
+    for obj, to_world, surface_id in spheres:
+        out[names.next("sphere", obj.line)] = {"type": "sphere", "to_world": mi.ScalarTransform4f(to_world),
+                                     "bsdf": {"type": "ref", "id": surface_id}}
+    out |= {f"triangles_{k}": mesh for k, mesh in enumerate(triangles)}
+    meshes = quadric_meshes(tessellated, model, options, mi)
+    return out | {f"quadrics_{k}": mesh for k, mesh in enumerate(meshes)}
 
 
-def segments(obj, model, options, radius):
-    """Segments around a curved object so its silhouette is within SILHOUETTE_ERROR_PX."""
-    m = matrix(obj)
-    center = m[:3, 3]
-    extent = radius * np.linalg.norm(m[:3, :3], 2)  # world bounding-sphere radius
-    distance = max(np.linalg.norm(center - np.array(model.camera.eye)) - extent, 1e-3 * extent)
+class ShapeNames:
+    """``{kind}_{line}`` for the first object of a kind on a line, ``{kind}_{line}_{n}`` for
+    the n-th after it (a MIT 6.837 line may hold several spheres)."""
+
+    def __init__(self):
+        self.seen = collections.Counter()
+
+    def next(self, kind, line):
+        n = self.seen[kind, line]
+        self.seen[kind, line] += 1
+        return f"{kind}_{line}" if n == 0 else f"{kind}_{line}_{n}"
+
+
+def analytic_or_tessellated(curved):
+    """Split the curved objects ([(surface id, kind, objects)]) into analytic spheres
+    [(object, Mitsuba sphere's to_world as rows, surface id)] and the tessellated rest
+    [(surface id, kind, transforms (n, 4, 4))], classifying all of them at once."""
+    objs = [obj for _, _, group in curved for obj in group]
+    m = matrices(objs)
+    exact = np.array([obj.kind is ObjectKind.SPHERE for obj in objs], bool) & analytic_sphere(m)
+    rows = iter((m[exact] @ Z_TO_Y).tolist())
+    spheres, tessellated, start = [], [], 0
+    for surface_id, kind, group in curved:
+        m_group, exact_group = m[start:start + len(group)], exact[start:start + len(group)]
+        start += len(group)
+        spheres += [(obj, next(rows), surface_id) for obj, e in zip(group, exact_group) if e]
+        if not exact_group.all():
+            tessellated.append((surface_id, kind, m_group[~exact_group]))
+    return spheres, tessellated
+
+
+def matrices(objs) -> np.ndarray:
+    """The objects' to_world matrices, (n, 4, 4) float64."""
+    return np.array(list(map(operator.attrgetter("to_world"), objs)), dtype=np.float64).reshape(-1, 4, 4)
+
+
+def analytic_sphere(m):
+    """Which transforms (n, 4, 4) Mitsuba's analytic sphere draws exactly: a rotation times a
+    positive uniform scale (a similarity without mirroring or shear)."""
+    linear = m[:, :3, :3]
+    gram = np.einsum("nki,nkj->nij", linear, linear)
+    scale2 = np.trace(gram, axis1=1, axis2=2) / 3.0
+    off = np.abs(gram - scale2[:, None, None] * np.eye(3)).max(axis=(1, 2))
+    return (np.linalg.det(linear) > 0) & (off <= 1e-9 * scale2)
+
+
+def plane(obj, model, mi) -> dict:
+    m = np.array(obj.to_world, dtype=np.float64)
+    eye = np.linalg.solve(m, np.array([*model.camera.eye, 1.0]))  # the eye in object space
+    height = max(abs(eye[1]), 1e-3)
+    return {"type": "rayplane", "to_world": mi.ScalarTransform4f(m),
+            "center_x": float(eye[0]), "center_z": float(eye[2]),
+            "inner": height / 4.0, "outer": height * PLANE_REACH}
+
+
+# -- tessellated objects: segment counts, the budget, merged meshes ----------------------------
+def wanted_segments(m, kind, model, options):
+    """Segments around each object (transforms m, (n, 4, 4)) so its silhouette is within
+    SILHOUETTE_ERROR_PX, clamped to [MIN_SEGMENTS, MAX_SEGMENTS] (not yet even)."""
+    center = m[:, :3, 3]
+    extent = BOUNDING_RADIUS[kind] * np.linalg.norm(m[:, :3, :3], 2, axis=(1, 2))  # world bounding radius
+    distance = np.maximum(np.linalg.norm(center - np.array(model.camera.eye), axis=1) - extent,
+                          1e-3 * extent)
     tan_half = math.tan(math.radians(model.camera.vertical_fov(options.width, options.height)) / 2.0)
     pixels = extent / distance / tan_half * options.height / 2.0
-    wanted = math.pi * math.sqrt(max(pixels, 1.0) / (2.0 * SILHOUETTE_ERROR_PX))
-    count = int(min(max(math.ceil(wanted), MIN_SEGMENTS), MAX_SEGMENTS))
+    wanted = np.ceil(math.pi * np.sqrt(np.maximum(pixels, 1.0) / (2.0 * SILHOUETTE_ERROR_PX)))
+    return np.clip(wanted, MIN_SEGMENTS, MAX_SEGMENTS)
+
+
+def scaled_segments(wanted, factor):
+    """The counts ``wanted`` scaled by ``factor`` <= 1, at least BUDGET_MIN_SEGMENTS, even."""
+    count = np.clip(np.ceil(wanted * factor), BUDGET_MIN_SEGMENTS, MAX_SEGMENTS).astype(np.int64)
     return count + count % 2
 
 
-def shape(obj: SceneObject, model, options, mi) -> dict:
-    m = matrix(obj)
-    if obj.kind is ObjectKind.SPHERE:
-        if is_similarity(m[:3, :3]):
-            return {"type": "sphere", "to_world": mi.ScalarTransform4f(m @ Z_TO_Y)}
-        return {"type": "rayellipsoid", "to_world": mi.ScalarTransform4f(m),
-                "segments": segments(obj, model, options, 1.0)}
-    if obj.kind in (ObjectKind.CYLINDER, ObjectKind.CONE):
-        return {"type": "ray" + obj.kind.value, "to_world": mi.ScalarTransform4f(m),
-                "segments": segments(obj, model, options, math.sqrt(1.25))}
-    if obj.kind is ObjectKind.PLANE:
-        eye = np.linalg.solve(m, np.array([*model.camera.eye, 1.0]))  # the eye in object space
-        height = max(abs(eye[1]), 1e-3)
-        return {"type": "rayplane", "to_world": mi.ScalarTransform4f(m),
-                "center_x": float(eye[0]), "center_z": float(eye[2]),
-                "inner": height / 4.0, "outer": height * PLANE_REACH}
-    raise ValueError(f"no shape for {obj.kind}")
+def within_budget(wanted: dict, budget: int, limit: int) -> dict:
+    """Segment counts per kind ({kind: wanted counts}) for a total of at most ``budget``
+    triangles: ``wanted`` itself if it fits, else every count scaled by the largest common
+    factor that fits (bisection: the total only grows with the factor), down to
+    BUDGET_MIN_SEGMENTS; at that floor the budget gives way up to ``limit``, past which
+    the scene is refused."""
+    def total(factor):
+        return sum(int(tessellation.triangle_count(kind.value, scaled_segments(w, factor)).sum())
+                   for kind, w in wanted.items())
+
+    if total(1.0) <= budget:
+        return {kind: scaled_segments(w, 1.0) for kind, w in wanted.items()}
+    fits, over = 0.0, 1.0
+    if total(0.0) > limit:
+        count = sum(len(w) for w in wanted.values())
+        raise GeometryTooLarge(
+            f"too much geometry: the {count} curved objects (cylinders, cones, spheres under "
+            f"non-uniform scales) need {total(0.0)} triangles even at {BUDGET_MIN_SEGMENTS} "
+            f"segments each (about {total(0.0) * BYTES_PER_TRIANGLE / 1e9:.1f} GB), more than "
+            f"the limit of {limit}")
+    if total(0.0) <= budget:
+        for _ in range(30):
+            mid = 0.5 * (fits + over)
+            fits, over = (mid, over) if total(mid) <= budget else (fits, mid)
+    return {kind: scaled_segments(w, fits) for kind, w in wanted.items()}
+
+
+def quadric_meshes(curved, model, options, mi) -> list:
+    """One smooth ``raytriangles`` mesh per surface holding every tessellated object of it.
+    ``curved``: [(surface id, kind, transforms (n, 4, 4))]."""
+    wanted = {}
+    for _, kind, m in curved:
+        wanted.setdefault(kind, []).append(wanted_segments(m, kind, model, options))
+    wanted = {kind: np.concatenate(w) for kind, w in wanted.items()}
+    counts = within_budget(wanted, options.tessellation_budget, options.tessellation_limit)
+    taken = {kind: 0 for kind in counts}
+    batches = {}  # surface id -> [(template, transforms)]
+    for surface_id, kind, m in curved:
+        segments = counts[kind][taken[kind]:taken[kind] + len(m)]
+        taken[kind] += len(m)
+        for count in np.unique(segments):
+            batches.setdefault(surface_id, []).append(
+                (tessellation.template(kind.value, int(count)), m[segments == count]))
+    return [world_mesh(tessellation.merged(batch), mi) | {"bsdf": {"type": "ref", "id": surface_id}}
+            for surface_id, batch in batches.items()]
+
+
+def world_mesh(mesh, mi) -> dict:
+    """A ``raytriangles`` dict of a world-space float32 tessellation (smooth: with vertex normals)."""
+    return {"type": "raytriangles", "positions": mi.Float(mesh.positions.ravel()),
+            "normals": mi.Float(mesh.normals.ravel()), "texcoords": mi.Float(mesh.texcoords.ravel()),
+            "faces": mi.UInt32(mesh.faces.ravel())}
 
 
 def uv_to_image(mi):
@@ -211,18 +349,29 @@ TRIANGLE_UV = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
 
 
 def triangle_mesh(objs, mi) -> dict:
-    """World-space corners of triangles, wound so the format's front side is preserved."""
+    """World-space corners of triangles, wound so the format's front side is preserved
+    (built per transform in bulk: corners (n, 3, 3) mapped by one matrix)."""
+    transforms = list(map(operator.attrgetter("to_world"), objs))
+    vertices = list(map(operator.attrgetter("vertices"), objs))
+    if transforms.count(transforms[0]) == len(transforms):  # the common case: one transform
+        by_transform = {transforms[0]: vertices}
+    else:
+        by_transform = {}
+        for to_world, corners in zip(transforms, vertices):
+            by_transform.setdefault(to_world, []).append(corners)
     positions, texcoords = [], []
-    for obj in objs:
-        m = matrix(obj)
-        corners = np.array(obj.vertices, dtype=np.float64) @ m[:3, :3].T + m[:3, 3]
+    for to_world, vertices in by_transform.items():
+        m = np.array(to_world, dtype=np.float64)
+        corners = np.fromiter(chain.from_iterable(chain.from_iterable(vertices)), np.float64,
+                              count=9 * len(vertices)).reshape(-1, 3, 3)
+        corners = corners @ m[:3, :3].T + m[:3, 3]
+        # Mirroring maps the front side's normal by the inverse transpose, so the world
+        # winding must be reversed to keep it: the corners (0, 2, 1).
         order = [0, 2, 1] if np.linalg.det(m[:3, :3]) < 0 else [0, 1, 2]
-        positions.append(corners[order])
-        texcoords.append(TRIANGLE_UV[order])
-    positions = np.concatenate(positions).astype(np.float32)
-    texcoords = np.concatenate(texcoords).astype(np.float32)
-    return {"type": "raytriangles", "positions": mi.Float(positions.ravel()),
-            "texcoords": mi.Float(texcoords.ravel())}
+        positions.append(corners[:, order].astype(np.float32))
+        texcoords.append(np.broadcast_to(TRIANGLE_UV[order].astype(np.float32), (len(corners), 3, 2)))
+    return {"type": "raytriangles", "positions": mi.Float(np.concatenate(positions).ravel()),
+            "texcoords": mi.Float(np.concatenate(texcoords).ravel())}
 
 
 def mesh_shapes(model: Scene, mi) -> dict:

@@ -72,13 +72,15 @@ def test_objects_share_their_material_by_reference(translate):
                   "material 0 1 0  1 1 0 1  0 0 1\n"
                   "translate 0 3 0\nsphere\n")              # mat2
     shapes = _shapes(d)
-    refs = {k: v["bsdf"] for k, v in shapes.items()}
-    assert all(r["type"] == "ref" for r in refs.values())
-    by_line = {int(k.rsplit("_", 1)[1]): r["id"] for k, r in refs.items()}
-    assert by_line == {2: "mat0", 4: "mat1", 5: "mat1", 6: "mat1", 7: "mat1", 10: "mat2"}
-    kinds = {int(k.rsplit("_", 1)[1]): v["type"] for k, v in shapes.items()}
-    assert kinds == {2: "sphere", 4: "sphere", 5: "raycylinder", 6: "raycone", 7: "rayplane",
-                     10: "sphere"}
+    assert all(v["bsdf"]["type"] == "ref" for v in shapes.values())
+    refs = {k: v["bsdf"]["id"] for k, v in shapes.items()}
+    kinds = {k: v["type"] for k, v in shapes.items()}
+    # Analytic spheres and planes one by one, named by line; the cylinder and the cone of
+    # mat1 merged into one tessellated mesh.
+    assert refs == {"sphere_2": "mat0", "sphere_4": "mat1", "quadrics_0": "mat1",
+                    "plane_7": "mat1", "sphere_10": "mat2"}
+    assert kinds == {"sphere_2": "sphere", "sphere_4": "sphere", "quadrics_0": "raytriangles",
+                     "plane_7": "rayplane", "sphere_10": "sphere"}
 
 
 def test_textured_surfaces_wrap_the_material(translate, tmp_path):
@@ -94,9 +96,14 @@ def test_textured_surfaces_wrap_the_material(translate, tmp_path):
                   "checkerboard 0.5\nplane\n"                # mat1 x checker 0.5
                   "sphere\n")                                # checker: planes only -> mat1
     shapes = _shapes(d)
-    by_line = {int(k.rsplit("_", 1)[1]): v["bsdf"]["id"] for k, v in shapes.items()}
-    assert by_line[4] == by_line[5] != by_line[7]
-    assert by_line[9] == "mat1" and by_line[12] == "mat1"
+    refs = {k: v["bsdf"]["id"] for k, v in shapes.items()}
+    # The cylinder (line 5) shares sphere 4's surface, the cone (line 9) is plain mat1:
+    # two merged meshes.
+    meshes = {refs[k] for k in shapes if k.startswith("quadrics_")}
+    assert meshes == {refs["sphere_4"], "mat1"} and len(shapes) == 6
+    assert refs["sphere_4"] != refs["sphere_7"]
+    assert refs["sphere_12"] == "mat1"
+    by_line = {4: refs["sphere_4"], 7: refs["sphere_7"], 11: refs["plane_11"]}
     surfaces = {k: v for k, v in d.items() if k.startswith("surface")}
     assert set(surfaces) == {by_line[4], by_line[7], by_line[11]}
     for key, surface in surfaces.items():
@@ -115,16 +122,20 @@ def test_textured_surfaces_wrap_the_material(translate, tmp_path):
 @pytest.mark.parametrize("steps, kind", [
     ("", "sphere"),
     ("rotateX 30\nrotateY -70\nscale 2 2 2\ntranslate 1 2 3\n", "sphere"),
-    ("scale 1 2 1\n", "rayellipsoid"),
-    ("scale 2 1 1\nrotateZ 30\nscale 1 1 3\n", "rayellipsoid"),   # sheared
-    ("rotateZ 30\nscale 1 1.0001 1\n", "rayellipsoid"),
+    ("scale 1 2 1\n", "raytriangles"),
+    ("scale 2 1 1\nrotateZ 30\nscale 1 1 3\n", "raytriangles"),   # sheared
+    ("rotateZ 30\nscale 1 1.0001 1\n", "raytriangles"),
+    ("scale -1 1 1\n", "raytriangles"),                            # mirrored
 ])
-def test_similarity_sphere_is_analytic_otherwise_an_ellipsoid_mesh(translate, steps, kind):
+def test_similarity_sphere_is_analytic_otherwise_a_smooth_mesh(translate, steps, kind):
     d = translate("light 1 1 1 ambient\n" + steps + "sphere\n")
     (shape,) = _shapes(d).values()
     assert shape["type"] == kind
-    if kind == "rayellipsoid":
-        assert shape["segments"] >= 48
+    if kind == "raytriangles":
+        from raymitsuba.tessellation import triangle_count
+
+        faces = np.array(shape["faces"]).reshape(-1, 3)
+        assert len(faces) >= triangle_count("sphere", 48) and "normals" in shape
         return
     # The analytic sphere's to_world: the unit sphere onto the transformed one, with its
     # pole (local +z, where Mitsuba's sphere puts it) on object +y (the format's pole).
@@ -208,3 +219,118 @@ def test_mit_6837_sensor_fov_is_vertical_for_the_image(translate):
     expected = math.degrees(2 * math.atan(math.tan(math.radians(30)) * 8 / 16))
     assert d["sensor"]["fov"] == pytest.approx(expected, abs=1e-12)
     assert d["sensor"]["fov_axis"] == "y"
+
+
+# -- geometry in bulk ----------------------------------------------------------------------------
+TRANSFORMS = ["", "translate 1 2 3\n", "scale -1 1 1\n", "rotateX 30\nscale 2 -0.5 1\n",
+              "rotateY 45\nscale -1 -2 -3\ntranslate 0 1 0\n"]  # two mirror, one does not
+
+
+def _per_triangle(model):
+    """The translator's triangles one by one, as it did before building them in bulk: world
+    corners in winding order and their texture coordinates, one row per triangle."""
+    rows = []
+    for obj in model.objects:
+        m = np.array(obj.to_world)
+        corners = np.array(obj.vertices) @ m[:3, :3].T + m[:3, 3]
+        order = [0, 2, 1] if np.linalg.det(m[:3, :3]) < 0 else [0, 1, 2]
+        uv = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+        rows.append(np.concatenate([corners[order].ravel(), uv[order].ravel()]))
+    return np.array(rows)
+
+
+def test_triangles_in_bulk_match_one_by_one(translate):
+    """A few hundred triangles under mirroring and non-mirroring transforms, interleaved:
+    the bulk mesh has exactly the corners (float32), winding and texture coordinates of the
+    triangle-by-triangle construction (as a set: the bulk groups them by transform)."""
+    from raymitsuba.parser import parse_text
+
+    rng = np.random.default_rng(3)
+    lines = ["light 1 1 1 ambient\n"]
+    for k in range(300):
+        lines.append(TRANSFORMS[k % len(TRANSFORMS)])
+        lines.append("triangle " + " ".join(f"{v:.4f}" for v in rng.uniform(-2, 2, 9)) + "\n")
+        lines.append("reset\n")
+    text = "".join(lines)
+    (mesh,) = [v for k, v in translate(text).items() if k.startswith("triangles_")]
+    got = np.concatenate([np.array(mesh["positions"]).reshape(-1, 9),
+                          np.array(mesh["texcoords"]).reshape(-1, 6)], axis=1)
+    want = _per_triangle(parse_text(text))
+    want[:, :9] = want[:, :9].astype(np.float32)
+    assert got.shape == want.shape == (300, 15)
+    np.testing.assert_array_equal(got[np.lexsort(got.T)], want[np.lexsort(want.T)])
+
+
+def test_placed_copies_match_one_by_one_and_face_outward():
+    """Placing a template under k transforms at once gives each object's own placement, and
+    every face's right-hand-rule normal agrees with its vertex normals (outward) in the
+    world, mirrored or not; the vertices lie on the transformed primitive."""
+    from raymitsuba import tessellation
+    from support import rotation, scaling, stack, translation
+
+    transforms = np.array([stack(scaling(1, 2, 0.5), rotation("x", 30), translation(1, 2, 3)),
+                           stack(scaling(-1, 1, 1), rotation("y", 70)),
+                           stack(scaling(0.3, -0.2, -1.5), translation(-4, 0, 1))])
+    for kind in ("sphere", "cylinder", "cone"):
+        template = tessellation.template(kind, 16)
+        together = tessellation.placed(template, transforms)
+        for k, m in enumerate(transforms):
+            alone = tessellation.placed(template, m[None])
+            v = slice(k * len(template.positions), (k + 1) * len(template.positions))
+            np.testing.assert_array_equal(together.positions[v], alone.positions)
+            np.testing.assert_array_equal(together.normals[v], alone.normals)
+            f = slice(k * len(template.faces), (k + 1) * len(template.faces))
+            np.testing.assert_array_equal(together.faces[f] - v.start, alone.faces)
+        p = together.positions[together.faces]
+        face_n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        assert np.all(np.einsum("ij,ij->i", face_n, together.normals[together.faces].sum(1)) > 0)
+        merged = tessellation.merged([(template, transforms)])
+        np.testing.assert_allclose(merged.positions, together.positions, rtol=1e-6, atol=1e-6)
+        np.testing.assert_array_equal(merged.faces, together.faces)
+    sphere = tessellation.placed(tessellation.template("sphere", 16), transforms[:1])
+    local = (sphere.positions - transforms[0, :3, 3]) @ np.linalg.inv(transforms[0, :3, :3]).T
+    radius = np.linalg.norm(local, axis=1)  # on the unit sphere, up to chords and the overlap
+    assert np.all(radius < 1.0 + 2e-4) and np.all(radius > np.cos(np.pi / 16) - 1e-3)
+
+
+@pytest.mark.parametrize("kind", ["sphere", "cylinder", "cone"])
+def test_triangle_counts_in_closed_form(kind):
+    from raymitsuba import tessellation
+
+    for m in (8, 12, 30, 48, 130, 768):
+        assert len(tessellation.template(kind, m).faces) == tessellation.triangle_count(kind, m)
+
+
+def _mesh_faces(d):
+    return sum(np.array(v["faces"]).size // 3 for k, v in d.items() if k.startswith("quadrics_"))
+
+
+QUADRICS = "".join(f"scale 1 2 1\ntranslate {x} 0 -10\n{kind}\nreset\n"
+                   for x in range(-6, 7) for kind in ("sphere", "cylinder", "cone"))
+
+
+def test_tessellation_budget_scales_segment_counts_down(translate):
+    """Over the budget, every object's segment count is scaled down by one factor until the
+    total fits; below it, the counts are those of the silhouette target."""
+    free = _mesh_faces(translate(QUADRICS, width=64, height=64))
+    budget = free // 3
+    d = translate(QUADRICS, width=64, height=64, tessellation_budget=budget)
+    assert budget * 0.8 < _mesh_faces(d) <= budget
+    # The largest count scaled down still fits: halving the budget again halves about twice.
+    smaller = _mesh_faces(translate(QUADRICS, width=64, height=64, tessellation_budget=budget // 4))
+    assert smaller <= budget // 4
+
+
+def test_tessellation_budget_gives_way_at_the_floor_then_refuses(translate):
+    """At BUDGET_MIN_SEGMENTS the budget gives way up to the limit; past the limit the scene
+    is refused with one line saying why, before any mesh is built."""
+    from raymitsuba.tessellation import triangle_count
+    from raymitsuba.translate import BUDGET_MIN_SEGMENTS, GeometryTooLarge
+
+    floor = 13 * sum(int(triangle_count(k, BUDGET_MIN_SEGMENTS)) for k in ("sphere", "cylinder", "cone"))
+    d = translate(QUADRICS, tessellation_budget=10, tessellation_limit=floor)
+    assert _mesh_faces(d) == floor
+    with pytest.raises(GeometryTooLarge) as info:
+        translate(QUADRICS, tessellation_budget=10, tessellation_limit=floor - 1)
+    message = str(info.value)
+    assert "\n" not in message and f"need {floor} triangles" in message and "39 curved" in message
