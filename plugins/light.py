@@ -23,6 +23,8 @@ Parameters (exposed by ``mi.traverse``; all differentiable):
 * ``position`` (Point3f): point and spotlight
 * ``direction`` (Vector3f): directional and spotlight; need not be unit length
 * ``shape_coefficient`` (float, >= 0): the spotlight's exponent s
+* ``index`` (int, not a parameter): the light's number in file order, the j of its key
+  ``light{j}``; it keeps equal lights distinct (see ``rayphong``'s ``index``)
 """
 
 import drjit as dr
@@ -38,6 +40,7 @@ class Light(mi.Emitter):
     def __init__(self, props):
         super().__init__(props)
         self.kind = props.get("kind", "point")
+        self.index = int(props.get("index", 0))
         if self.kind not in KINDS:
             raise ValueError(f"raylight: unknown kind {self.kind!r}")
         self.color = mi.Color3f(props.get("color", mi.ScalarColor3f(1.0)))

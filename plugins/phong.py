@@ -23,6 +23,9 @@ Parameters (all differentiable; exposed by ``mi.traverse`` under these names):
 * ``phong_coeff`` (float, 1): the Phong exponent n >= 0
 * ``reflectivity`` (float, 0): kr; ``refractivity`` (float, 0): kt
 * ``ior`` (float, 1): index of refraction eta inside the object (1 outside)
+* ``index`` (int, not a parameter): the material's number in file order, the i of its
+  key ``mat{i}``. It keeps equal materials distinct: ``mi.load_dict`` merges objects
+  whose properties are all equal, which would drop the keys of all but one.
 """
 
 import drjit as dr
@@ -52,6 +55,7 @@ def phong_local(n, v, l, color, diffuse_mix, specular_mix, phong_coeff):
 class Phong(mi.BSDF):
     def __init__(self, props):
         super().__init__(props)
+        self.index = int(props.get("index", 0))
         self.color = mi.Color3f(props.get("color", mi.ScalarColor3f(1.0)))
         for name in FLOAT_PARAMS:
             setattr(self, name, mi.Float(props.get(name, DEFAULTS[name])))

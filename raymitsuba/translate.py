@@ -132,14 +132,16 @@ def sensor(model, options, mi):
 
 # -- materials, lights --------------------------------------------------------------------------
 def bsdf(material: Material, mi):
-    out = {"type": "rayphong", "id": f"mat{material.index}", "color": rgb(material.color, mi)}
+    out = {"type": "rayphong", "id": f"mat{material.index}", "index": material.index,
+           "color": rgb(material.color, mi)}
     for name in Material.FIELDS[1:]:
         out[name] = float(getattr(material, name))
     return out
 
 
 def emitter(light, mi):
-    out = {"type": "raylight", "kind": light.kind.value, "color": rgb(light.color, mi)}
+    out = {"type": "raylight", "id": f"light{light.index}", "index": light.index,
+           "kind": light.kind.value, "color": rgb(light.color, mi)}
     if light.position is not None:
         out["position"] = mi.ScalarPoint3f(*light.position)
     if light.direction is not None:

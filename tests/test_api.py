@@ -86,6 +86,26 @@ def test_parameter_keys(loaded):
                 "light2.shape_coefficient", "light3.position", "light0.color"} & keys
 
 
+def test_equal_materials_and_lights_keep_their_own_keys():
+    """Mitsuba merges objects whose properties are all equal when it loads a scene; two
+    equal `material` lines are still two materials (mat1, mat2), two equal `light` lines two
+    lights, and changing one changes only the objects under it."""
+    scene = ("light 0.5 0.5 0.5 point 0 0 5\nlight 0.5 0.5 0.5 point 0 0 5\n"
+             "eye 0 0 8\nmaterial 1 0 0 0 1 0 1 0 0 1\ntranslate -1.5 0 0\nsphere\n"
+             "material 1 0 0 0 1 0 1 0 0 1\nreset\ntranslate 1.5 0 0\nsphere\n")
+    loaded = raymitsuba.load(scene, width=33, height=9)
+    keys = set(loaded.params.keys())
+    assert {"mat1.color", "mat2.color", "light1.color", "light2.color"} <= keys
+    before = np.array(raymitsuba.render(loaded))
+    loaded.params["mat2.color"] = [0.0, 1.0, 0.0]
+    loaded.params.update()
+    after = np.array(raymitsuba.render(loaded))
+    # The left sphere (mat1) is unchanged; the right one (mat2) turned green: the same
+    # kd (N.L) (two lights of 0.5 each) now in the green channel.
+    np.testing.assert_array_equal(after[:, :16], before[:, :16])
+    np.testing.assert_array_equal(after[4, 24, [1, 0, 2]], before[4, 24])
+
+
 def test_changing_parameters_changes_the_render():
     loaded = raymitsuba.load(SCENE, width=9, height=9)
     params = loaded.params
