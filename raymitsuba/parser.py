@@ -147,29 +147,6 @@ def _read_scene_bytes(path) -> bytes:
         return f.read()
 
 
-# --------------------------------------------------------------------------------------
-# Reading files
-# --------------------------------------------------------------------------------------
-
-
-def _display_name(path) -> str:
-    try:
-        return os.fsdecode(path)
-    except (TypeError, ValueError):  # pragma: no cover - fsdecode of str/bytes/PathLike
-        return repr(path)
-
-
-def _read_scene_bytes(path) -> bytes:
-    """The file's bytes; only regular files and pipes (never devices that never end)."""
-    with open(path, "rb") as f:
-        mode = os.fstat(f.fileno()).st_mode
-        if stat.S_ISDIR(mode):
-            raise IsADirectoryError(21, "Is a directory")
-        if not (stat.S_ISREG(mode) or stat.S_ISFIFO(mode)):
-            raise OSError(0, "not a regular file")
-        return f.read()
-
-
 @contextlib.contextmanager
 def _no_cyclic_gc():
     """Pause the cyclic garbage collector while a parse builds its (acyclic) objects.
