@@ -43,8 +43,20 @@ def parse_any(source) -> Scene:
     return parser.parse(source)
 
 
-def load(source, width=512, height=512, spp=1, max_depth=5, srgb=False) -> Loaded:
-    """Parse (a path, .RAY text or a Scene) and load it into Mitsuba."""
+def load(source, width=512, height=512, spp=1, max_depth=5, srgb=False, aa=None,
+         memory_budget=None, bailout=None, time_limit=None) -> Loaded:
+    """Parse (a path, .RAY text or a Scene) and load it into Mitsuba.
+
+    Rendering options of the ``raywhitted`` integrator (None: its default):
+
+    * ``aa``: adaptive anti-aliasing threshold (linear value, e.g. 0.02; None or 0: off,
+      every pixel gets the ``spp`` samples, one sample being the pixel centre);
+    * ``memory_budget``: bytes a chunk of camera rays may take (default 2 GiB);
+    * ``bailout``: a ray whose path weight (product of kr / kt from the camera) is not
+      above this is not traced (default 0: the exact tree);
+    * ``time_limit``: seconds of estimated render time beyond which a render is refused
+      (default 3600; 0: no limit).
+    """
     from raymitsuba.backend import mitsuba
 
     model = parse_any(source)
@@ -52,6 +64,10 @@ def load(source, width=512, height=512, spp=1, max_depth=5, srgb=False) -> Loade
     options = Options(width=int(width), height=int(height), spp=int(spp),
                       max_depth=int(max_depth), srgb=bool(srgb))
     scene_dict = translate(model, options)
+    for key, value in (("aa", aa), ("memory_budget", memory_budget), ("bailout", bailout),
+                       ("time_limit", time_limit)):
+        if value is not None:
+            scene_dict["integrator"][key] = float(value)
     scene = mi.load_dict(scene_dict)
     return Loaded(model, options, scene_dict, scene, mi.traverse(scene))
 
