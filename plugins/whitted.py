@@ -44,7 +44,8 @@ import numpy as np
 
 from . import _antialias
 from ._camera import box_filter, camera_rays, pixel_means
-from ._chunks import (DEFAULT_BUDGET, GIB, BudgetError, Chunker, Job, means_and_spread, probe)
+from ._chunks import (BYTES_PER_RAY, DEFAULT_BUDGET, GIB, BudgetError, Chunker, Job,
+                      means_and_spread, probe)
 from ._surfaces import SceneTerms
 from ._tree import Tracer
 
@@ -183,7 +184,7 @@ class Whitted(mi.CppADIntegrator):
 
                     chunker.run(job, visit_refined)
                     plan.append((candidates, n))
-                    candidates = candidates[spread > self.aa]
+                    candidates = candidates[spread > _antialias.AGAIN * self.aa]
             self._plan = ((id(scene), width, height, spp, self.aa), plan)
             self.chunks = chunker.chunks_done
             return None if image is None else image.reshape(height, width, 3)
@@ -212,7 +213,15 @@ class Whitted(mi.CppADIntegrator):
                               "smaller image, or to an 8-bit .png without --aa")
 
     def check_time(self, width, height, spp):
-        """Refuse (BudgetError) a render whose estimated time is beyond ``time_limit``."""
+        """Refuse (BudgetError) a render whose estimated time is beyond ``time_limit``, or
+        whose average pixel's ray tree alone exceeds the memory budget."""
+        pixel = self.estimated_rays / (width * height) * BYTES_PER_RAY
+        if pixel > self.memory_budget:
+            raise BudgetError(
+                f"depth {self.max_depth} at {spp} spp: the ray tree of a pixel needs about "
+                f"{pixel / GIB:.3g} GB, over the memory budget ({self.memory_budget / GIB:.3g} "
+                "GB): lower --max-depth or --spp, add a --bailout (e.g. 1e-3), or raise "
+                "--memory-budget")
         seconds = self.estimated_rays / RAYS_PER_SECOND
         if self.time_limit > 0 and seconds > self.time_limit:
             raise BudgetError(

@@ -58,6 +58,10 @@ def show(value) -> str:
               help="Samples per pixel of the renders (1: the pixel centre).")
 @click.option("--max-depth", default=5, show_default=True, type=click.IntRange(0, 64),
               help="Bounces after the camera ray.")
+@click.option("--aa", default=None, type=click.FloatRange(0, min_open=True), metavar="THRESHOLD",
+              help="Adaptive anti-aliasing of the renders (see raymitsuba render --help).")
+@click.option("--memory-budget", default="2G", show_default=True, metavar="SIZE",
+              help="Memory a chunk of camera rays may take (e.g. 512M, 4G).")
 @click.option("--truth", default=None, type=click.Path(dir_okay=False),
               help="The true scene (same structure): also print each parameter's error.")
 @click.option("--plot", default=None, type=click.Path(dir_okay=False),
@@ -65,7 +69,8 @@ def show(value) -> str:
 @click.option("--srgb", is_flag=True,
               help="Decode an 8-bit target (and textures) from sRGB; show the plot's images in sRGB.")
 @click.option("-q", "--quiet", is_flag=True, help="Print only the final summary.")
-def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srgb, quiet):
+def fit(scene, target, output, keys, iters, lr, spp, max_depth, aa, memory_budget, truth, plot,
+        srgb, quiet):
     """Fit parameters of the .RAY file SCENE so that its render matches TARGET.
 
     Minimises the mean squared error over pixels and channels (linear values) with
@@ -78,6 +83,9 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srg
     if plot is not None and os.path.splitext(plot)[1].lower() not in PLOT_FORMATS:
         raise click.BadParameter(f"{plot}: use one of {', '.join(PLOT_FORMATS)}",
                                  param_hint="--plot")
+    from raymitsuba.render_cli import parse_size
+
+    budget = parse_size(memory_budget)
     model, data = parse_scene(scene)
     report(model.warnings)
     try:
@@ -123,7 +131,7 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srg
     try:
         backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
         loaded = api.load(model, width=width, height=height, spp=spp, max_depth=max_depth,
-                          srgb=srgb)
+                          srgb=srgb, aa=aa, memory_budget=budget)
         result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, spp=spp,
                              callback=progress)
         fitted_text = fitting.rewrite_scene(data, model, result.fitted)
