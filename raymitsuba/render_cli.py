@@ -51,6 +51,10 @@ class Progress:
             self.bar = None
 
 
+class _NotYet(Exception):
+    """Stands for an exception class not imported yet (never raised)."""
+
+
 SIZE_UNITS = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
 
 
@@ -105,6 +109,7 @@ def render(scene, output, width, height, spp, max_depth, aa, memory_budget, bail
     from raymitsuba._llvm import LLVMError
 
     progress = Progress(width * height)
+    BudgetError = _NotYet  # the plugins' class, once Mitsuba is set up
     try:
         backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
         from raymitsuba.plugins._chunks import BudgetError
