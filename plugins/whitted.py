@@ -19,7 +19,37 @@ The pieces, one idea per module:
 * ``_surfaces.py``: the surface table (every surface's parameters by slot), the
   lights and the background, read from the scene at the start of a render;
 * ``_tree.py``: the ray tree, traced generation by generation (a wavefront), with
-  the conventions for directions, normals and entering/leaving decided there.
+  the conventions for directions, normals and entering/leaving decided there;
+* ``_chunks.py``: which camera rays are traced together (chunks within a memory
+  budget) and the estimate of a render's size;
+* ``_antialias.py``: which pixels adaptive anti-aliasing refines.
+
+**Chunks.** The image is traced in chunks of consecutive pixels (all samples of a pixel
+in one chunk), each chunk's whole ray tree within ``memory_budget``, and assembled on the
+host (numpy), so that memory does not grow with the image: 16384 x 16384 and 4096 x 4096
+at 16 spp fit in a few GB. A pixel's value does not depend on its chunk: the image is
+the same, bit for bit, as the one wavefront of ``render_image``. The adjoint passes are
+chunked the same way: ``render_backward`` re-traces each chunk with AD and
+backpropagates its slice of ``grad_in``; ``render_forward`` propagates each chunk's
+tangents, so a gradient step's memory is bounded too.
+
+**Guards.** Before tracing, a render estimates its rays (a spread-out sample of pixels,
+traced, its tree's growth extrapolated) and refuses (``BudgetError``, one line saying
+why and what would work) an output buffer larger than the memory available, a pixel
+whose tree alone exceeds the budget, or an estimated time beyond ``time_limit``.
+
+**Adaptive anti-aliasing** (``aa`` > 0): a first pass at the render's sampling (one
+sample per pixel: the centre); pixels that differ from one of their 8 neighbours by
+more than ``aa`` (in some channel, linear values) get a stratified 4 x 4 grid, and those
+whose 16 samples still differ by more than 5 ``aa`` an 8 x 8 grid; each pixel is the
+box-filtered average of its last grid. Deterministic; differentiable like the rest: the
+choice of pixels is a detached decision (made by the primal render; the adjoint passes
+re-trace each pixel with the samples its value came from).
+
+When to use which: ``spp`` 1 (the default) is the exact pixel-centre image that numeric
+tests and fits against such a target want; ``aa`` (e.g. 0.02) gives clean edges at a
+fraction of the cost of uniform supersampling, for images to look at; uniform ``spp``
+n^2 treats every pixel alike (a fit to a supersampled target, or a reference).
 
 No atomics and no randomness: the image is bit-for-bit reproducible, and every
 step is differentiable (reverse and forward mode through ``render_backward`` /
@@ -34,6 +64,13 @@ Parameters:
 * ``max_depth`` (int, default 5): bounces after the camera ray
 * ``max_shadow_crossings`` (int, default 16): a shadow ray that crosses more
   transparent surfaces than this is taken as blocked
+* ``bailout`` (float, default 0): a ray whose path weight (the product of the kr / kt
+  weights from the camera ray down to it) is not above this is not traced; 0 traces the
+  exact tree, whose width can grow with every generation (glass at depth 64)
+* ``aa`` (float, default 0: off): the adaptive anti-aliasing threshold
+* ``memory_budget`` (bytes, default 2 GiB): what one chunk's tree may take
+* ``time_limit`` (seconds, default 3600; 0: none): longer estimated renders are refused
+* ``chunk_pixels`` (int, default 0: by budget only): at most this many pixels a chunk
 """
 
 import os
