@@ -84,7 +84,7 @@ def warm_renders(path, width, height, spp, repeats):
         t = time.perf_counter()
         raymitsuba.render(loaded).numpy()
         times.append(time.perf_counter() - t)
-    return {"times": times, "rays": loaded.integrator.rays_per_generation}
+    return {"times": times, "rays": loaded.integrator.rays_traced}
 
 
 def native_direct(path, width, height, spp, repeats):
@@ -243,7 +243,7 @@ def shares(image, reference):
     return 100 * float(np.mean(d <= 2 / 255 + 1e-6)), 100 * float(np.mean(d <= 8 / 255 + 1e-6))
 
 
-AA_THRESHOLD = 0.02
+AA_THRESHOLDS = (0.05, 0.02)
 
 
 def aa_section(work, repeats, width=512, height=384):
@@ -258,8 +258,9 @@ def aa_section(work, repeats, width=512, height=384):
     process(render_cmd(path, ref, "--width", width, "--height", height, "--spp", 256))
     reference = np.load(ref)
     rows = []
-    for label, args in (("1 spp", ("--spp", 1)), ("4 spp", ("--spp", 4)),
-                        ("16 spp", ("--spp", 16)), (f"--aa {AA_THRESHOLD}", ("--aa", AA_THRESHOLD))):
+    variants = [("1 spp", ("--spp", 1)), ("4 spp", ("--spp", 4)), ("16 spp", ("--spp", 16))]
+    variants += [(f"--aa {t}", ("--aa", t)) for t in AA_THRESHOLDS]
+    for label, args in variants:
         out = os.path.join(work, "aa.npy")
         cmd = render_cmd(path, out, "--width", width, "--height", height, *args)
         process(cmd)  # warm the kernel cache
@@ -352,7 +353,7 @@ def table(args, repeats, w, h, work):
             rows.append({"scene": name, "spp": spp, "cold_first": cold["first"], "first": median(first),
                          "warm": median(warm), "direct": median(direct), "process": median(process),
                          "povray": median(pov) if pov else None,
-                         "rays": sum(rays) / (w * h * spp)})
+                         "rays": rays / (w * h * spp)})
     print()
     print(f"{'scene':22} {'spp':>3} {'cold 1st':>9} {'1st':>7} {'warm':>7} {'direct':>7} "
           f"{'warm/dir':>8} {'process':>8} {'povray':>7} {'pov/proc':>8} {'rays/cam':>8}")

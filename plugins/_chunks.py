@@ -33,11 +33,13 @@ from ._tree import TreeTooLarge
 
 GIB = 1 << 30
 DEFAULT_BUDGET = 2 * GIB
-# Peak memory per ray of a chunk's tree (what every generation keeps, the widest
-# generation's transient arrays, Embree's and the allocator's share), measured on the
-# benchmark scenes with some margin; with AD, the graph of every generation is kept.
+# Memory per ray of a chunk's tree (what every generation keeps, the widest generation's
+# transient arrays, Embree's and the allocator's share). Measured peaks on the benchmark
+# scenes: 50-95 bytes per ray (primal), about 100 for a whole AD step, whose graph keeps
+# every generation; the figures leave a margin of 3-6x, which the output buffer, an 8-bit
+# encoder's copy of it and Dr.Jit's allocator cache share.
 BYTES_PER_RAY = 320
-BYTES_PER_RAY_AD = 2400
+BYTES_PER_RAY_AD = 640
 MIN_CHUNK_RAYS = 1 << 12
 MAX_CHUNK_LANES = 1 << 26  # camera rays of one chunk (far below Dr.Jit's 2^32 lanes)
 PROBE_PIXELS = 1024

@@ -119,6 +119,7 @@ class Whitted(mi.CppADIntegrator):
         self.chunk_pixels = chunk_pixels or None  # at most this many pixels a chunk (tests)
         self.progress = None  # optional callable(pixels_done, pixels_total, chunks_done)
         self.chunks = 0  # of the last render
+        self.rays_traced = 0  # of the last render: rays of every chunk's tree
         self.estimated_rays = None  # of the last render: the guard's estimate
         self._plan = None  # the last primal render's anti-aliasing decisions
 
@@ -224,6 +225,7 @@ class Whitted(mi.CppADIntegrator):
                     candidates = candidates[spread > _antialias.AGAIN * self.aa]
             self._plan = ((id(scene), width, height, spp, self.aa), plan)
             self.chunks = chunker.chunks_done
+            self.rays_traced = chunker.rays_traced
             return None if image is None else image.reshape(height, width, 3)
 
     def render_image(self, scene, sensor=0, spp=0):
@@ -286,7 +288,7 @@ class Whitted(mi.CppADIntegrator):
 
     def _jobs(self, scene, sensor, spp):
         """The adjoint passes' jobs: (job, mask of the pixels it gives the value of, or None)."""
-        sensor_, spp, width, height = self._setup(scene, sensor, spp)
+        _, spp, width, height = self._setup(scene, sensor, spp)
         plan = []
         if self.aa > 0:
             key = (id(scene), width, height, spp, self.aa)
