@@ -10,9 +10,10 @@ image is the same, bit for bit, however it is split.
 BYTES_PER_RAY`` (``BYTES_PER_RAY_AD`` when the chunk is traced with AD, which keeps
 every generation's graph for the adjoint pass): the tracer raises ``TreeTooLarge``
 before a generation would take the tree past it, and the chunk is then traced again
-in halves. How many pixels a chunk holds follows the rays per camera ray of the
-chunk before (the tree's size varies over the image: mirrors, glass), so that a
-chunk usually fits at the first attempt. Everything is decided from ray counts, so
+in halves. How many pixels a chunk holds follows the largest number of rays per
+camera ray seen so far (at first twice the probe's average: the tree's size varies
+over the image, mirrors and glass against sky), so that a chunk fits at the first
+attempt (a failed attempt is work thrown away). Everything is decided from ray counts, so
 the split, like the image, is the same on every run.
 
 **Time.** Before a render, :func:`probe` traces a spread-out sample of the image's
@@ -36,9 +37,9 @@ DEFAULT_BUDGET = 2 * GIB
 # Memory per ray of a chunk's tree (what every generation keeps, the widest generation's
 # transient arrays, Embree's and the allocator's share). Measured peaks on the benchmark
 # scenes: 50-95 bytes per ray (primal), about 100 for a whole AD step, whose graph keeps
-# every generation; the figures leave a margin of 3-6x, which the output buffer, an 8-bit
+# every generation; the figures leave a margin of 2-6x, which the output buffer, an 8-bit
 # encoder's copy of it and Dr.Jit's allocator cache share.
-BYTES_PER_RAY = 320
+BYTES_PER_RAY = 200
 BYTES_PER_RAY_AD = 640
 MIN_CHUNK_RAYS = 1 << 12
 MAX_CHUNK_LANES = 1 << 26  # camera rays of one chunk (far below Dr.Jit's 2^32 lanes)
@@ -87,7 +88,7 @@ class Chunker:
         self.max_pixels = max_pixels  # at most this many pixels a chunk (None: by budget only)
         self.terms = terms  # the scene's terms for detached chunks (built once)
         self.budget = budget
-        self.ratio = max(float(rays_per_camera_ray), 1.0)
+        self.ratio = max(2.0 * float(rays_per_camera_ray), 1.0)
         self.progress = progress
         self.pixels_done = 0
         self.chunks_done = 0
@@ -121,7 +122,7 @@ class Chunker:
                     self.tracer.max_lanes = None
             rays = sum(self.tracer.rays_per_generation)
             self.rays_traced += rays
-            self.ratio = max(rays / (count * job.spp), 1.0)
+            self.ratio = max(rays / (count * job.spp), self.ratio)
             visit(start, count, color)
             del color
             start += count
@@ -131,7 +132,7 @@ class Chunker:
                 self.progress(self.pixels_done, self.chunks_done)
 
     def _chunk_pixels(self, job, max_rays):
-        # 1.5: room for a chunk whose tree is larger than the one before
+        # 1.5: room for a chunk whose tree is larger than any before
         lanes = min(int(max_rays / (self.ratio * 1.5)), MAX_CHUNK_LANES)
         pixels = max(lanes // job.spp, 1)
         return pixels if self.max_pixels is None else min(pixels, self.max_pixels)
