@@ -94,20 +94,20 @@ class Chunker:
         self.chunks_done = 0
         self.rays_traced = 0
 
-    def max_rays(self, ad):
+    def tree_rays(self, ad):
         return max(int(self.budget // (BYTES_PER_RAY_AD if ad else BYTES_PER_RAY)), MIN_CHUNK_RAYS)
 
     def run(self, job, visit, ad=False):
         """Trace ``job`` chunk by chunk; for each chunk call ``visit(start, count, color)``
         with the camera rays' colors (one lane per camera ray, pixel-major). ``visit`` is
         called with AD enabled when ``ad`` (and then the tree is sized for its graph)."""
-        max_rays = self.max_rays(ad)
+        max_rays = self.tree_rays(ad)
         start = 0
         while start < job.count:
             pixels = self._chunk_pixels(job, max_rays)
             count = min(pixels, job.count - start)
             while True:
-                self.tracer.max_lanes = max_rays
+                self.tracer.max_rays = max_rays
                 try:
                     color = self._trace(job, start, count, ad)
                     break
@@ -119,7 +119,7 @@ class Chunker:
                             "a --bailout (e.g. 1e-3) or a larger --memory-budget") from None
                     count = max(count // 2, 1)
                 finally:
-                    self.tracer.max_lanes = None
+                    self.tracer.max_rays = None
             rays = sum(self.tracer.rays_per_generation)
             self.rays_traced += rays
             self.ratio = max(rays / (count * job.spp), self.ratio)
@@ -156,7 +156,7 @@ def probe(tracer, scene, sensor, width, height, spp, terms):
     samples = min(spp, max(PROBE_PIXELS * 4 // len(pixels), 1))  # enough lanes, few rays
     job = Job(width, height, samples, pixels=pixels)
     camera = len(pixels) * samples
-    tracer.max_lanes = PROBE_RAYS
+    tracer.max_rays = PROBE_RAYS
     try:
         with dr.suspend_grad():
             tracer.trace(scene, job.rays(sensor, 0, job.count), terms)
@@ -172,7 +172,7 @@ def probe(tracer, scene, sensor, width, height, spp, terms):
             deeper = e.lanes * (growth ** min(rest, 200) - 1) / (growth - 1)
         return (traced + deeper) / camera
     finally:
-        tracer.max_lanes = None
+        tracer.max_rays = None
 
 
 def means_and_spread(color, count, spp):

@@ -80,7 +80,7 @@ class Step:
 
 
 class TreeTooLarge(Exception):
-    """The ray tree would hold more than ``Tracer.max_lanes`` rays (generation ``depth``,
+    """The ray tree would hold more than ``Tracer.max_rays`` rays (generation ``depth``,
     of ``lanes`` rays, would take it past)."""
 
     def __init__(self, depth, lanes):
@@ -95,7 +95,7 @@ class Tracer:
     ray that crosses more transparent surfaces than this is taken as blocked;
     ``min_weight``: a child whose path weight (the product of the kr / kt weights from
     the camera ray down to it) is not above this is not traced (0: every child of
-    weight > 0, the exact tree); ``max_lanes``: a tree of more rays than this raises
+    weight > 0, the exact tree); ``max_rays``: a tree of more rays than this raises
     :class:`TreeTooLarge` (None: no limit); ``progress``: optional callable(generations_done).
     """
 
@@ -103,7 +103,7 @@ class Tracer:
         self.max_depth = max_depth
         self.max_shadow_crossings = max_shadow_crossings
         self.min_weight = min_weight
-        self.max_lanes = None
+        self.max_rays = None
         self.progress = None
         self.rays_per_generation = []  # of the last trace: how many rays each depth traced
 
@@ -127,8 +127,8 @@ class Tracer:
                 self.progress(depth + 1)
             if ray is None:
                 break
-            if self.max_lanes is not None and \
-                    sum(self.rays_per_generation) + dr.width(ray) > self.max_lanes:
+            if self.max_rays is not None and \
+                    sum(self.rays_per_generation) + dr.width(ray) > self.max_rays:
                 raise TreeTooLarge(depth + 1, dr.width(ray))
 
         color = None
