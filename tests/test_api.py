@@ -120,3 +120,15 @@ def test_render_spp_override():
     b = np.array(raymitsuba.render(four))
     assert a.tobytes() == b.tobytes()
     assert not np.array_equal(a, np.array(raymitsuba.render(one)))  # edge pixels differ
+
+
+def test_render_options_reach_the_integrator():
+    import raymitsuba
+
+    loaded = raymitsuba.load("sphere\n", width=8, height=8, aa=0.03, memory_budget=1 << 25,
+                             bailout=1e-3, time_limit=10)
+    integrator = loaded.integrator
+    assert integrator.aa == pytest.approx(0.03) and integrator.memory_budget == 1 << 25
+    assert integrator.tracer.min_weight == pytest.approx(1e-3) and integrator.time_limit == 10
+    plain = raymitsuba.load("sphere\n", width=8, height=8).integrator
+    assert plain.aa == 0 and plain.tracer.min_weight == 0 and plain.time_limit == 3600
