@@ -211,6 +211,9 @@ class Whitted(mi.CppADIntegrator):
                     if len(candidates) == 0:
                         break
                     total[0] += len(candidates)
+                    # the refinement's rays, now that its pixels are known, count too
+                    self.estimated_rays += ratio * len(candidates) * n * n
+                    self.check_time(width, height, spp)
                     job = Job(width, height, n * n, pixels=candidates)
                     spread = np.empty(len(candidates), np.float32)
 

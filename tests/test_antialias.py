@@ -109,3 +109,20 @@ def test_gradients_with_antialiasing_match_finite_differences(mi, scene, key):
     assert abs(reverse - finite) <= tg.REL_FD * abs(finite), (finite, reverse)
     assert abs(forward - finite) <= tg.REL_FD * abs(finite), (finite, forward)
     assert abs(reverse - forward) <= tg.REL_AD * abs(forward), (reverse, forward)
+
+
+def test_the_refinement_counts_in_the_time_guard(mi):
+    import raymitsuba
+    from raymitsuba.plugins import _chunks, whitted
+
+    loaded = raymitsuba.load("scenes/whitted.ray", width=64, height=48, aa=0.02)
+    integrator = loaded.integrator
+    integrator.render_array(loaded.scene)
+    with_refinement = integrator.estimated_rays
+    plain = raymitsuba.load("scenes/whitted.ray", width=64, height=48)
+    plain.integrator.render_array(plain.scene)
+    assert with_refinement > 2 * plain.integrator.estimated_rays
+    # a limit between the two: the first pass is allowed, the refinement refused
+    integrator.time_limit = 1.5 * plain.integrator.estimated_rays / whitted.RAYS_PER_SECOND
+    with pytest.raises(_chunks.BudgetError, match="--time-limit"):
+        integrator.render_array(loaded.scene)
