@@ -74,7 +74,12 @@ def load(source, width=512, height=512, spp=1, max_depth=5, srgb=False, aa=None,
 
 def render(loaded: Loaded, spp: int | None = None, params=None):
     """The image as a Dr.Jit TensorXf (H, W, 3), linear. Differentiable w.r.t. ``params``
-    (default: all of ``loaded.params``) through ``mi.render``."""
+    (default: all of ``loaded.params``) through ``mi.render``.
+
+    Traced in chunks within the loaded ``memory_budget`` and assembled on the host (16384 x
+    16384 works: a 3.2 GB tensor); ``loaded.integrator.render_array(loaded.scene)`` gives
+    the numpy array without the tensor's copy. A request no budget can hold raises
+    ``BudgetError`` (raymitsuba.plugins._chunks) before anything is traced."""
     from raymitsuba.backend import mitsuba
 
     mi = mitsuba()
