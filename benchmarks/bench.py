@@ -24,6 +24,19 @@ loss, to all material parameters and to the Phong terms only) at 256x256 / 8 spp
 and 1024x768 / 1 spp, as a ratio to the primal render at the same settings, and
 the peak memory of each (separate processes).
 
+Memory (``raymitsuba render`` processes, peak resident memory as the kernel accounts it):
+4096 x 4096 at 16 spp on the reflective scene, depth 64 on the glass scene at 1024 x 768
+(with ``--bailout 1e-4``: the exact tree at depth 64 grows ~1.2x a generation, which the
+render refuses up front), and with ``--huge`` 16384 x 16384 at 1 spp (minutes).
+
+Anti-aliasing, on the reflective scene at 512 x 384 against a 256-spp (16 x 16 grid)
+render: the share of pixels whose largest channel difference (values clamped to [0, 1])
+is within 2/255 and 8/255, and the process time relative to a 1-spp render, for uniform
+1, 4 and 16 spp and ``--aa``; POV-Ray's ``+A0.3`` (adaptive, its default depth 3) and its
+uniform 4 spp likewise against its own 16 x 16 supersampled render.
+
+    ./dev bench --only memory,aa     # only these sections (also: table, grad)
+
 Timings on shared machines are noisy: medians of several runs, and ratios of
 figures taken in the same run, are what to compare.
 """
@@ -71,7 +84,7 @@ def warm_renders(path, width, height, spp, repeats):
         t = time.perf_counter()
         raymitsuba.render(loaded).numpy()
         times.append(time.perf_counter() - t)
-    return {"times": times, "rays": loaded.integrator.rays_per_generation}
+    return {"times": times, "rays": loaded.integrator.rays_traced}
 
 
 def native_direct(path, width, height, spp, repeats):
@@ -190,11 +203,112 @@ def median(xs):
     return statistics.median(xs) if xs else float("nan")
 
 
+def process(cmd, **kwargs):
+    """Run ``cmd``; (wall seconds, cpu seconds, peak resident MB) of that process alone."""
+    t = time.perf_counter()
+    p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, **kwargs)
+    _, status, usage = os.wait4(p.pid, 0)
+    wall_s = time.perf_counter() - t
+    err = p.stderr.read().decode()
+    p.stderr.close()
+    p.returncode = os.waitstatus_to_exitcode(status)
+    if p.returncode != 0:
+        raise RuntimeError(f"{' '.join(map(str, cmd))}: exit {p.returncode}: {err.strip()}")
+    return wall_s, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024
+
+
+def render_cmd(path, out, *args):
+    return [sys.executable, "-m", "raymitsuba", "render", path, "-o", out, *map(str, args)]
+
+
+def memory_section(work, huge):
+    print("\npeak memory of whole `raymitsuba render` processes (default --memory-budget 2G):")
+    jobs = [("benchmark_reflective", ("--width", 4096, "--height", 4096, "--spp", 16)),
+            ("benchmark_glass", ("--width", 1024, "--height", 768, "--max-depth", 64,
+                                 "--bailout", "1e-4"))]
+    if huge:
+        jobs.append(("benchmark_reflective", ("--width", 16384, "--height", 16384, "--spp", 1)))
+    for name, args in jobs:
+        out = os.path.join(work, "big.png")
+        wall_s, cpu_s, peak = process(render_cmd(scene_path(name), out, *args))
+        print(f"  {name:22} {' '.join(map(str, args)):45} {wall_s:7.1f} s  peak {peak:6.0f} MB")
+
+
+def shares(image, reference):
+    """Shares (%) of pixels within 2/255 and 8/255 of the reference (largest channel
+    difference, values clamped to [0, 1])."""
+    import numpy as np
+
+    d = np.abs(np.clip(image, 0, 1) - np.clip(reference, 0, 1)).max(axis=-1)
+    return 100 * float(np.mean(d <= 2 / 255 + 1e-6)), 100 * float(np.mean(d <= 8 / 255 + 1e-6))
+
+
+AA_THRESHOLDS = (0.05, 0.02)
+
+
+def aa_section(work, repeats, width=512, height=384):
+    import numpy as np
+
+    from raymitsuba import images
+
+    path = scene_path(SCENES[0])
+    print(f"\nanti-aliasing on {SCENES[0]} at {width}x{height}, against a 256-spp render "
+          f"(pixels within 2/255 and 8/255; process time, median of {repeats}, relative to 1 spp):")
+    ref = os.path.join(work, "ref.npy")
+    process(render_cmd(path, ref, "--width", width, "--height", height, "--spp", 256))
+    reference = np.load(ref)
+    rows = []
+    variants = [("1 spp", ("--spp", 1)), ("4 spp", ("--spp", 4)), ("16 spp", ("--spp", 16))]
+    variants += [(f"--aa {t}", ("--aa", t)) for t in AA_THRESHOLDS]
+    for label, args in variants:
+        out = os.path.join(work, "aa.npy")
+        cmd = render_cmd(path, out, "--width", width, "--height", height, *args)
+        process(cmd)  # warm the kernel cache
+        runs = [process(cmd) for _ in range(repeats)]
+        rows.append((label, median([r[0] for r in runs]), median([r[1] for r in runs]),
+                     *shares(np.load(out), reference)))
+    base_wall, base_cpu = rows[0][1], rows[0][2]
+    for label, wall_s, cpu_s, within2, within8 in rows:
+        print(f"  raymitsuba {label:12} {within2:6.2f} % {within8:6.2f} %   time x{wall_s / base_wall:5.2f}"
+              f" (cpu x{cpu_s / base_cpu:5.2f}; {wall_s:.2f} s)")
+    if not shutil.which("povray"):
+        print("  POV-Ray: not installed")
+        return
+    import raymitsuba
+    from povray import export
+
+    pov = os.path.join(work, "scene.pov")
+    with open(pov, "w") as f:
+        f.write(export(raymitsuba.parse(path), width, height))
+
+    def povray(out, *aa):
+        return ["povray", f"+I{pov}", f"+O{out}", f"+W{width}", f"+H{height}", "-D", "-V",
+                "+WT2", *aa]
+
+    pref = os.path.join(work, "pov_ref.png")
+    process(povray(pref, "+A0.0", "+AM1", "+R16"), cwd=work)
+    reference = images.read(pref)
+    rows = []
+    for label, aa in (("plain", ("-A",)), ("4 spp", ("+A0.0", "+AM1", "+R2")), ("+A0.3", ("+A0.3",))):
+        out = os.path.join(work, "pov.png")
+        runs = [process(povray(out, *aa), cwd=work) for _ in range(repeats)]
+        rows.append((label, median([r[0] for r in runs]), median([r[1] for r in runs]),
+                     *shares(images.read(out), reference)))
+    base_wall, base_cpu = rows[0][1], rows[0][2]
+    for label, wall_s, cpu_s, within2, within8 in rows:
+        print(f"  POV-Ray {label:15} {within2:6.2f} % {within8:6.2f} %   time x{wall_s / base_wall:5.2f}"
+              f" (cpu x{cpu_s / base_cpu:5.2f}; {wall_s:.2f} s)")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats")
     ap.add_argument("--width", type=int, default=1024)
     ap.add_argument("--height", type=int, default=768)
+    ap.add_argument("--only", default="table,grad,memory,aa",
+                    help="comma-separated sections: table, grad, memory, aa")
+    ap.add_argument("--huge", action="store_true",
+                    help="memory section: also 16384 x 16384 at 1 spp (minutes)")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -207,6 +321,19 @@ def main():
     repeats = 3 if args.quick else 7
     w, h = args.width, args.height
     work = tempfile.mkdtemp(prefix="raymitsuba-bench-")
+    only = set(args.only.split(","))
+    if "table" in only:
+        table(args, repeats, w, h, work)
+    if "grad" in only:
+        gradients(repeats, w, h)
+    if "memory" in only:
+        memory_section(work, args.huge)
+    if "aa" in only:
+        aa_section(work, repeats)
+    shutil.rmtree(work, ignore_errors=True)
+
+
+def table(args, repeats, w, h, work):
     rows = []
     print(f"raymitsuba benchmark: {w}x{h}, medians of {repeats} runs (first renders: of 1-3 fresh processes)")
     for name in SCENES:
@@ -226,7 +353,7 @@ def main():
             rows.append({"scene": name, "spp": spp, "cold_first": cold["first"], "first": median(first),
                          "warm": median(warm), "direct": median(direct), "process": median(process),
                          "povray": median(pov) if pov else None,
-                         "rays": sum(rays) / (w * h * spp)})
+                         "rays": rays / (w * h * spp)})
     print()
     print(f"{'scene':22} {'spp':>3} {'cold 1st':>9} {'1st':>7} {'warm':>7} {'direct':>7} "
           f"{'warm/dir':>8} {'process':>8} {'povray':>7} {'pov/proc':>8} {'rays/cam':>8}")
@@ -241,6 +368,8 @@ def main():
         glass = [r for r in rows if r["spp"] == spp and r["scene"] == SCENES[1]][0]
         print(f"glass / reflective warm render at {spp} spp: {glass['warm'] / refl['warm']:.2f}")
 
+
+def gradients(repeats, w, h):
     print("\ngradient step (primal + reverse-mode gradient of an L2 loss) vs primal, on "
           f"{SCENES[1]}; each figure from its own process (time median, peak memory):")
     for (gw, gh, gspp) in ((256, 256, 8), (w, h, 1)):
@@ -252,7 +381,6 @@ def main():
             print(f"  {gw}x{gh} {gspp} spp, {label:23}: primal {median(primal['times']):.3f} s "
                   f"({primal['peak_mb']:.0f} MB), step {median(step['times']):.3f} s "
                   f"({step['peak_mb']:.0f} MB), ratio {median(step['times']) / median(primal['times']):.2f}")
-    shutil.rmtree(work, ignore_errors=True)
 
 
 if __name__ == "__main__":

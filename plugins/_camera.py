@@ -29,11 +29,25 @@ def stratum_offset(s, spp):
     return mi.Point2f(x, y - dr.floor(y))
 
 
-def camera_rays(sensor, width, height, spp):
-    """Camera rays, pixel-major (all samples of pixel 0, then pixel 1...); row 0 is the top."""
-    index = dr.arange(mi.UInt32, width * height * spp)
-    pixel = index // spp
-    offset = stratum_offset(index - pixel * spp, spp)
+def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None):
+    """Camera rays, pixel-major (all samples of a pixel, then the next pixel's); row 0 is the top.
+
+    Of the pixels ``first`` .. ``first + count - 1`` (default: the whole image), or of the
+    pixels listed in ``pixels`` (a UInt32 array, in its order). A pixel's rays are the same
+    whichever batch it is part of: the image does not depend on how it is split."""
+    if pixels is None:
+        count = width * height - first if count is None else count
+    else:
+        count = dr.width(pixels)
+    index = dr.arange(mi.UInt32, count * spp)
+    local = index // spp
+    offset = stratum_offset(index - local * spp, spp)
+    if pixels is not None:
+        pixel = dr.gather(mi.UInt32, pixels, local)
+    elif first:  # data, not a constant of the kernel: it changes from chunk to chunk
+        pixel = local + dr.opaque(mi.UInt32, first)
+    else:
+        pixel = local
     row = pixel // width
     film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
                           (mi.Float(row) + offset.y) / height)
@@ -41,12 +55,34 @@ def camera_rays(sensor, width, height, spp):
     return mi.Ray3f(ray)
 
 
+def pixel_sums(color, count, spp):
+    """Per pixel, the sum of its ``spp`` consecutive lanes of ``color`` (``count`` pixels)."""
+    pixel = dr.arange(mi.UInt32, count) * spp
+    total = dr.gather(mi.Color3f, color, pixel)
+    for s in range(1, spp):
+        total += dr.gather(mi.Color3f, color, pixel + s)
+    return total
+
+
+def pixel_means(color, count, spp):
+    """Per pixel, the box-filtered average of its ``spp`` consecutive lanes (Color3f)."""
+    total = pixel_sums(color, count, spp)
+    if spp > 1:
+        total *= 1.0 / spp
+    return total
+
+
+def pixel_spread(color, count, spp):
+    """Per pixel, the largest difference between two of its samples in one channel."""
+    pixel = dr.arange(mi.UInt32, count) * spp
+    low = high = dr.gather(mi.Color3f, color, pixel)
+    for s in range(1, spp):
+        c = dr.gather(mi.Color3f, color, pixel + s)
+        low, high = dr.minimum(low, c), dr.maximum(high, c)
+    return dr.max(high - low)
+
+
 def box_filter(color, width, height, spp):
     """The (H, W, 3) image: each pixel the average of its ``spp`` consecutive lanes."""
-    pixel = dr.arange(mi.UInt32, width * height) * spp
-    image = dr.gather(mi.Color3f, color, pixel)
-    for s in range(1, spp):
-        image += dr.gather(mi.Color3f, color, pixel + s)
-    if spp > 1:
-        image *= 1.0 / spp
+    image = pixel_means(color, width * height, spp)
     return mi.TensorXf(dr.ravel(image), shape=(height, width, 3))

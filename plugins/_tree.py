@@ -81,25 +81,47 @@ class Step:
         self.reflected, self.refracted = rays if rays else (None, None)
 
 
+class TreeTooLarge(Exception):
+    """The ray tree would hold more than ``Tracer.max_rays`` rays (generation ``depth``,
+    of ``lanes`` rays, would take it past)."""
+
+    def __init__(self, depth, lanes):
+        super().__init__(f"generation {depth} of the ray tree has {lanes} rays")
+        self.depth, self.lanes = depth, lanes
+
+
 class Tracer:
     """Traces the ray tree of a batch of rays (see the module docstring).
 
     ``max_depth``: bounces after the first generation; ``max_shadow_crossings``: a shadow
     ray that crosses more transparent surfaces than this is taken as blocked;
-    ``progress``: optional callable(generations_done).
+    ``min_weight``: a child whose path weight (the product of the kr / kt weights from
+    the camera ray down to it) is not above this is not traced (0: every child of
+    weight > 0, the exact tree); ``max_rays``: a tree of more rays than this raises
+    :class:`TreeTooLarge` (None: no limit); ``progress``: optional callable(generations_done).
     """
 
-    def __init__(self, max_depth=5, max_shadow_crossings=16):
+    def __init__(self, max_depth=5, max_shadow_crossings=16, min_weight=0.0):
         self.max_depth = max_depth
         self.max_shadow_crossings = max_shadow_crossings
+        self.min_weight = min_weight
+        self.max_rays = None
         self.progress = None
         self.rays_per_generation = []  # of the last trace: how many rays each depth traced
         self.geometry = HitTable()  # the scene's geometry by shape id, kept across renders
 
-    def trace(self, scene, ray):
-        """The color of each ray of ``ray`` (one lane per ray) through its whole tree."""
+    def scene_terms(self, scene):
+        """What shading needs from ``scene`` (its SceneTerms, with the geometry table), built
+        once per render and shared by its chunks."""
         terms = SceneTerms(scene)
         terms.geometry = self.geometry.update(scene)
+        return terms
+
+    def trace(self, scene, ray, terms=None):
+        """The color of each ray of ``ray`` (one lane per ray) through its whole tree
+        (``terms``: from :meth:`scene_terms`, if already built)."""
+        terms = self.scene_terms(scene) if terms is None else terms
+        path_weight = mi.Float(1.0) if self.min_weight > 0 else None
         generations = []
         self.rays_per_generation = []
         for depth in range(self.max_depth + 1):
@@ -110,11 +132,14 @@ class Tracer:
             generations.append(generation)
             if last:
                 break
-            ray = self.spawn(generation, step)
+            ray, path_weight = self.spawn(generation, step, path_weight)
             if self.progress is not None:
                 self.progress(depth + 1)
             if ray is None:
                 break
+            if self.max_rays is not None and \
+                    sum(self.rays_per_generation) + dr.width(ray) > self.max_rays:
+                raise TreeTooLarge(depth + 1, dr.width(ray))
 
         color = None
         for generation in reversed(generations):
@@ -233,18 +258,25 @@ class Tracer:
                                                       label="shadow ray")
         return transmittance, (slots if record else None)
 
-    def spawn(self, generation, step):
-        """Record the children of ``generation`` and return their rays (None: no children).
+    def spawn(self, generation, step, path_weight=None):
+        """Record the children of ``generation`` and return their rays (None: no children)
+        and, given the lanes' ``path_weight`` (detached; None: no bailout), the children's.
 
-        A lane has a reflected (refracted) child where its weight is > 0; the children
-        are compacted, reflected ones first, into the next generation's lanes."""
+        A lane has a reflected (refracted) child where its weight is > 0 (and its path
+        weight above ``min_weight``); the children are compacted, reflected ones first,
+        into the next generation's lanes."""
         weight_r, weight_t = step.weight_r, step.weight_t
         has_r, has_t = step.hit & (weight_r > 0), step.hit & (weight_t > 0)
+        if path_weight is not None:
+            path_r = path_weight * dr.detach(weight_r)
+            path_t = path_weight * dr.detach(weight_t)
+            has_r, has_t = has_r & (path_r > self.min_weight), has_t & (path_t > self.min_weight)
+            dr.eval(path_r, path_t)
         dr.eval(generation.local, weight_r, weight_t, has_r, has_t, step.reflected, step.refracted)
         index_r, index_t = dr.compress(has_r), dr.compress(has_t)
         count_r, count_t = dr.width(index_r), dr.width(index_t)
         if count_r + count_t == 0:
-            return None
+            return None, None
         generation.weight_r, generation.has_r = weight_r, has_r
         generation.weight_t, generation.has_t = weight_t, has_t
         generation.child_r = dr.prefix_sum(mi.UInt32(has_r))  # exclusive: rank among the lanes with a child
@@ -263,4 +295,7 @@ class Tracer:
                            dr.gather(mi.Point3f, reflected.o, parent))
         direction = dr.select(is_t, dr.gather(mi.Vector3f, refracted.d, parent),
                               dr.gather(mi.Vector3f, reflected.d, parent))
-        return mi.Ray3f(origin, direction)
+        if path_weight is not None:
+            path_weight = dr.select(is_t, dr.gather(mi.Float, path_t, parent),
+                                    dr.gather(mi.Float, path_r, parent))
+        return mi.Ray3f(origin, direction), path_weight

@@ -47,9 +47,22 @@ def parse_any(source, dialect: str = "auto") -> Scene:
     return parser.parse(source, dialect)
 
 
-def load(source, width=None, height=None, spp=1, max_depth=5, srgb=False,
-         dialect="auto") -> Loaded:
-    """Parse (a path, .RAY text or a Scene, in ``dialect``) and load it into Mitsuba."""
+def load(source, width=None, height=None, spp=1, max_depth=5, srgb=False, dialect="auto",
+         aa=None, memory_budget=None, bailout=None, time_limit=None) -> Loaded:
+    """Parse (a path, .RAY text or a Scene, in ``dialect``) and load it into Mitsuba.
+
+    ``width`` and ``height`` (None: the MIT 6.837 ``viewport``, else 512) set the image size.
+
+    Rendering options of the ``raywhitted`` integrator (None: its default):
+
+    * ``aa``: adaptive anti-aliasing threshold (linear value, e.g. 0.02; None or 0: off,
+      every pixel gets the ``spp`` samples, one sample being the pixel centre);
+    * ``memory_budget``: bytes a chunk of camera rays may take (default 2 GiB);
+    * ``bailout``: a ray whose path weight (product of kr / kt from the camera) is not
+      above this is not traced (default 0: the exact tree);
+    * ``time_limit``: seconds of estimated render time beyond which a render is refused
+      (default 3600; 0: no limit).
+    """
     from raymitsuba.backend import mitsuba
 
     model = parse_any(source, dialect)
@@ -58,6 +71,10 @@ def load(source, width=None, height=None, spp=1, max_depth=5, srgb=False,
     options = Options(width=width, height=height, spp=int(spp),
                       max_depth=int(max_depth), srgb=bool(srgb))
     scene_dict = translate(model, options)
+    for key, value in (("aa", aa), ("memory_budget", memory_budget), ("bailout", bailout),
+                       ("time_limit", time_limit)):
+        if value is not None:
+            scene_dict["integrator"][key] = float(value)
     # Serially: a mesh plugin's constructor waits on Dr.Jit (params.update() evaluates), and
     # a thread waiting in Mitsuba's parallel loader runs the next pending constructor
     # inside that wait, so 1,000 meshes nested 1,000 constructors deep (RecursionError).
@@ -67,7 +84,12 @@ def load(source, width=None, height=None, spp=1, max_depth=5, srgb=False,
 
 def render(loaded: Loaded, spp: int | None = None, params=None):
     """The image as a Dr.Jit TensorXf (H, W, 3), linear. Differentiable w.r.t. ``params``
-    (default: all of ``loaded.params``) through ``mi.render``."""
+    (default: all of ``loaded.params``) through ``mi.render``.
+
+    Traced in chunks within the loaded ``memory_budget`` and assembled on the host (16384 x
+    16384 works: a 3.2 GB tensor); ``loaded.integrator.render_array(loaded.scene)`` gives
+    the numpy array without the tensor's copy. A request no budget can hold raises
+    ``BudgetError`` (raymitsuba.plugins._chunks) before anything is traced."""
     from raymitsuba.backend import mitsuba
 
     mi = mitsuba()

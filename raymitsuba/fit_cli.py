@@ -58,6 +58,10 @@ def show(value) -> str:
               help="Samples per pixel of the renders (1: the pixel centre).")
 @click.option("--max-depth", default=5, show_default=True, type=click.IntRange(0, 64),
               help="Bounces after the camera ray.")
+@click.option("--aa", default=None, type=click.FloatRange(0, min_open=True), metavar="THRESHOLD",
+              help="Adaptive anti-aliasing of the renders (see raymitsuba render --help).")
+@click.option("--memory-budget", default="2G", show_default=True, metavar="SIZE",
+              help="Memory a chunk of camera rays may take (e.g. 512M, 4G).")
 @click.option("--truth", default=None, type=click.Path(dir_okay=False),
               help="The true scene (same structure): also print each parameter's error.")
 @click.option("--plot", default=None, type=click.Path(dir_okay=False),
@@ -66,7 +70,8 @@ def show(value) -> str:
               help="Decode an 8-bit target (and textures) from sRGB; show the plot's images in sRGB.")
 @click.option("-q", "--quiet", is_flag=True, help="Print only the final summary.")
 @cli_common.dialect_option
-def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srgb, quiet, dialect):
+def fit(scene, target, output, keys, iters, lr, spp, max_depth, aa, memory_budget, truth, plot,
+        srgb, quiet, dialect):
     """Fit parameters of the .RAY file SCENE so that its render matches TARGET.
 
     Minimises the mean squared error over pixels and channels (linear values) with
@@ -79,6 +84,9 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srg
     if plot is not None and os.path.splitext(plot)[1].lower() not in PLOT_FORMATS:
         raise click.BadParameter(f"{plot}: use one of {', '.join(PLOT_FORMATS)}",
                                  param_hint="--plot")
+    from raymitsuba.render_cli import parse_size
+
+    budget = parse_size(memory_budget)
     model, data = parse_scene(scene, dialect)
     report(model.warnings)
     try:
@@ -124,7 +132,7 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, truth, plot, srg
     try:
         backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
         loaded = api.load(model, width=width, height=height, spp=spp, max_depth=max_depth,
-                          srgb=srgb)
+                          srgb=srgb, aa=aa, memory_budget=budget)
         result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, spp=spp,
                              callback=progress)
         fitted_text = fitting.rewrite_scene(data, model, result.fitted)

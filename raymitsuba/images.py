@@ -42,11 +42,21 @@ def check_writable(path: str) -> None:
         raise ImageError(f"{path}: unknown output format; use one of {', '.join(WRITERS)}")
 
 
+def is_8bit(path: str) -> bool:
+    """Whether ``path``'s format stores 8-bit values (what :func:`encode_8bit` makes)."""
+    return os.path.splitext(path)[1].lower() in (".png", ".jpg", ".jpeg")
+
+
 def write(path: str, image, srgb: bool = False) -> None:
-    """Write an (H, W, 3) linear image to ``path`` atomically (format by extension)."""
+    """Write an (H, W, 3) linear image to ``path`` atomically (format by extension).
+
+    For an 8-bit format the image may also be uint8, already encoded by :func:`encode_8bit`
+    (a large render is encoded chunk by chunk, without a float copy of the whole image)."""
     check_writable(path)
-    image = np.asarray(image, dtype=np.float32)
     ext = os.path.splitext(path)[1].lower()
+    image = np.asarray(image)
+    if not (image.dtype == np.uint8 and is_8bit(path)):
+        image = np.asarray(image, dtype=np.float32)
     with atomic_path(path, ext) as tmp:
         if ext == ".exr":
             _write_exr(tmp, image)
@@ -77,16 +87,21 @@ def _write_exr(path, image):
 PNG_COMPRESS_LEVEL = 1
 
 
-def _write_8bit(path, image, srgb, fmt):
-    from PIL import Image
-
+def encode_8bit(image, srgb=False):
+    """Linear float values to the 8-bit values an 8-bit file stores (clamped to [0, 1])."""
     if srgb:
         values = srgb_encode(image).astype(np.float32, copy=False)
     else:
         values = np.clip(image, 0.0, 1.0)  # a new array: the steps below work in place
     np.multiply(values, 255.0, out=values)
     np.rint(values, out=values)  # what np.round does, without the temporaries
-    pixels = values.astype(np.uint8)
+    return values.astype(np.uint8)
+
+
+def _write_8bit(path, image, srgb, fmt):
+    from PIL import Image
+
+    pixels = image if image.dtype == np.uint8 else encode_8bit(image, srgb)
     options = {"quality": 95} if fmt == "JPEG" else {"compress_level": PNG_COMPRESS_LEVEL}
     Image.fromarray(pixels, "RGB").save(path, format=fmt, **options)
 

@@ -181,3 +181,15 @@ def test_the_povray_export_reads_both_dialects():
     comp = export(parse_text("fov 45\nsphere\nlight 1 1 1 ambient\n"), 12, 8)
     horizontal = 2 * math.degrees(math.atan(math.tan(math.radians(22.5)) * 12 / 8))
     assert f"angle {horizontal:.9g} }}" in comp
+
+
+def test_render_options_reach_the_integrator():
+    import raymitsuba
+
+    loaded = raymitsuba.load("sphere\n", width=8, height=8, aa=0.03, memory_budget=1 << 25,
+                             bailout=1e-3, time_limit=10)
+    integrator = loaded.integrator
+    assert integrator.aa == pytest.approx(0.03) and integrator.memory_budget == 1 << 25
+    assert integrator.tracer.min_weight == pytest.approx(1e-3) and integrator.time_limit == 10
+    plain = raymitsuba.load("sphere\n", width=8, height=8).integrator
+    assert plain.aa == 0 and plain.tracer.min_weight == 0 and plain.time_limit == 3600

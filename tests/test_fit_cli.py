@@ -113,3 +113,21 @@ class TestCommand:
         assert not isinstance(result.exception, Exception) or isinstance(result.exception, SystemExit)
         assert not out.exists()
         assert not any(name.startswith(".raymitsuba-") for name in os.listdir(tmp))
+
+
+def test_antialiasing_and_a_memory_budget_pass_through(files, monkeypatch):
+    from raymitsuba import api
+
+    seen = {}
+    load = api.load
+
+    def spy(*args, **kwargs):
+        seen.update(kwargs)
+        return load(*args, **kwargs)
+
+    monkeypatch.setattr(api, "load", spy)
+    tmp, start, _, target = files
+    result = run(start, "--target", target, "--params", "mat1.diffuse_mix", "--iters", 3,
+                 "--aa", 0.05, "--memory-budget", "64M", "-o", tmp / "fitted.ray", "-q")
+    assert result.exit_code == 0, result.output + result.stderr
+    assert seen["aa"] == 0.05 and seen["memory_budget"] == 64 << 20
