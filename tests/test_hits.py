@@ -125,3 +125,35 @@ def test_a_shape_outside_the_table_falls_back_to_mitsuba(mitsuba):
     assert not HitTable().update(scene).supported
     image = np.array(mi.render(scene))
     assert image.shape == (8, 8, 3) and image.max() > 0
+
+
+def test_sphere_rows_are_read_as_mi_traverse_reads_them(mitsuba):
+    # The table reads each sphere's transform directly (shape_property, sphere_rows), not
+    # through mi.traverse and dr.slice of the whole matrices: the same values, bit for bit.
+    import drjit as dr
+
+    from raymitsuba.plugins._hits import HitTable, shape_property, sphere_rows
+
+    mi = mitsuba
+    text = "light 1 1 1 point 0 0 5\n" + "".join(
+        f"rotateZ {17 * k}\nrotateX {29 * k}\nscale {0.2 + 0.1 * k} {0.2 + 0.1 * k} "
+        f"{0.2 + 0.1 * k}\ntranslate {k - 2} {0.5 * k} {-k}\nsphere\npop\npop\npop\npop\n"
+        for k in range(5))
+    scene = load_ray(text, 8, 8).scene
+    spheres = [s for s in scene.shapes() if s.class_name() == "Sphere"]
+    assert len(spheres) == 5
+    table = HitTable().update(scene)
+    first = np.array(table.first)
+    for shape in spheres:
+        row = first[dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0]]
+        to_world = mi.traverse(shape)["to_world"]
+        assert shape_property(shape, "to_world") == to_world
+        matrix = np.array(dr.slice(to_world.matrix, 0), np.float32)
+        inverse = np.array(dr.slice(to_world.inverse_transpose, 0), np.float32).T
+        got_matrix, got_inverse = (np.array(rows, np.float32) for rows in sphere_rows(to_world))
+        assert np.array_equal(got_matrix, matrix[:3]) and np.array_equal(got_inverse, inverse[:3])
+        # and the table's row of this sphere holds them
+        center = np.array([np.array(c)[row] for c in table.center])
+        assert np.array_equal(center, matrix[:3, 3])
+        to_object = np.array(table.to_object).reshape(-1, 4, 3)[row]
+        assert np.array_equal(to_object, inverse[:3, :].T)
