@@ -19,7 +19,7 @@ size left out (None) comes from the MIT 6.837 ``viewport``, else 512.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from raymitsuba.model import Scene
@@ -32,7 +32,17 @@ class Loaded:
     options: Options
     scene_dict: dict  # what mi.load_dict received
     scene: Any  # mi.Scene
-    params: Any  # mi.SceneParameters
+    _params: Any = field(default=None, repr=False)
+
+    @property
+    def params(self):
+        """``mi.traverse(scene)`` (mi.SceneParameters), made at the first use and kept: a
+        plain render does not need it (0.3 s at 10^4 objects)."""
+        if self._params is None:
+            from raymitsuba.backend import mitsuba
+
+            self._params = mitsuba().traverse(self.scene)
+        return self._params
 
     @property
     def integrator(self):
@@ -79,7 +89,7 @@ def load(source, width=None, height=None, spp=1, max_depth=5, srgb=False, dialec
     # a thread waiting in Mitsuba's parallel loader runs the next pending constructor
     # inside that wait, so 1,000 meshes nested 1,000 constructors deep (RecursionError).
     scene = mi.load_dict(scene_dict, parallel=False)
-    return Loaded(model, options, scene_dict, scene, mi.traverse(scene))
+    return Loaded(model, options, scene_dict, scene)
 
 
 def render(loaded: Loaded, spp: int | None = None, params=None):
