@@ -104,6 +104,8 @@ class Surfaces:
         sizes[:len(bsdfs)] = [float(bsdf.checker_size) for bsdf in bsdfs]
         self.checker_size = mi.Float(sizes) if np.any(sizes > 0) else None
         self.set_textures(bsdfs)
+        # Whether shading reads the hits' texture coordinates (HitTable.update's uv).
+        self.uses_uv = self.checker_size is not None or bool(self.textures)
         # Whether any surface lets shadow rays through (kt > 0).
         self.any_transparent = bool(np.any(self.host["refractivity"] > 0))
 

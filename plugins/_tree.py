@@ -117,7 +117,7 @@ class Tracer:
         once per render and shared by its chunks."""
         with no_cyclic_gc():  # a Python pass over every shape and surface
             terms = SceneTerms(scene)
-            terms.geometry = self.geometry.update(scene)
+            terms.geometry = self.geometry.update(scene, uv=terms.surfaces.uses_uv)
         return terms
 
     def trace(self, scene, ray, terms=None):
