@@ -141,14 +141,14 @@ class Surfaces:
         attached = []
         for m, material in enumerate(materials):
             color = material.color
+            values = [getattr(material, name) for name in FLOAT_PARAMS]
             host["color"][m] = (color.x[0], color.y[0], color.z[0])
-            if dr.grad_enabled(color):
-                attached.append(("color", m, color))
-            for name in FLOAT_PARAMS:
-                value = getattr(material, name)
+            for name, value in zip(FLOAT_PARAMS, values):
                 host[name][m] = value[0]
-                if dr.grad_enabled(value):
-                    attached.append((name, m, value))
+            if dr.grad_enabled(color, values):  # (one call: most materials have none)
+                attached += [(name, m, value) for name, value in
+                             zip(("color",) + tuple(FLOAT_PARAMS), [color] + values)
+                             if dr.grad_enabled(value)]
         by_slot = {name: np.zeros((rows,) + values.shape[1:], np.float32)
                    for name, values in host.items()}
         for name, values in host.items():
