@@ -132,11 +132,19 @@ def sensor(model, options, mi):
 
 # -- materials, lights --------------------------------------------------------------------------
 def bsdf(material: Material, mi):
+    """The ``rayphong`` of ``material``: its color and the fields that differ from the
+    plugin's default (the format's, ``Material()``'s), down to the sign of a zero (each
+    property costs mi.load_dict ~1.5 us; 0.05 s at 10^4 materials)."""
     out = {"type": "rayphong", "id": f"mat{material.index}", "index": material.index,
            "color": rgb(material.color, mi)}
-    for name in Material.FIELDS[1:]:
-        out[name] = float(getattr(material, name))
+    for name, default in MATERIAL_DEFAULTS:
+        value = float(getattr(material, name))
+        if value != default or math.copysign(1.0, value) != math.copysign(1.0, default):
+            out[name] = value
     return out
+
+
+MATERIAL_DEFAULTS = tuple((name, float(getattr(Material(), name))) for name in Material.FIELDS[1:])
 
 
 def emitter(light, mi):
