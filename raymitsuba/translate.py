@@ -241,13 +241,15 @@ def analytic_or_tessellated(curved):
     m = matrices(objs)
     exact = np.array([obj.kind is ObjectKind.SPHERE for obj in objs], bool) & analytic_sphere(m)
     rows = iter((m[exact] @ Z_TO_Y).tolist())
+    flags = exact.tolist()  # (groups are often of one object: no numpy work per group)
     spheres, tessellated, start = [], [], 0
     for surface_id, kind, group in curved:
-        m_group, exact_group = m[start:start + len(group)], exact[start:start + len(group)]
-        start += len(group)
+        stop = start + len(group)
+        exact_group = flags[start:stop]
         spheres += [(obj, next(rows), surface_id) for obj, e in zip(group, exact_group) if e]
-        if not exact_group.all():
-            tessellated.append((surface_id, kind, m_group[~exact_group]))
+        if not all(exact_group):
+            tessellated.append((surface_id, kind, m[start:stop][~exact[start:stop]]))
+        start = stop
     return spheres, tessellated
 
 
