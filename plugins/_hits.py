@@ -42,6 +42,45 @@ def sphere_key(shape):
     return tuple(bbox.min) + tuple(bbox.max)
 
 
+class _Properties(mi.TraversalCallback):
+    """A shape's own properties by name, (value, its C++ type), without recursing into its
+    children: ``mi.traverse`` builds a SceneParameters (hashing the JIT ids of each value
+    read), about 15x slower per shape."""
+
+    def __init__(self):
+        mi.TraversalCallback.__init__(self)
+        self.values = {}
+
+    def put(self, name, value, flags, cpptype=None):
+        self.values[name] = (value, cpptype)
+
+
+def shape_property(shape, name):
+    """``mi.traverse(shape)[name]``, read directly (see _Properties)."""
+    properties = _Properties()
+    shape.traverse(properties)
+    value, cpptype = properties.values[name]
+    return value if cpptype is None else mi.get_property(value, cpptype, shape)
+
+
+def sphere_rows(to_world, uv=True):
+    """What the table keeps of a sphere of to-world transform ``to_world``, host values of
+    its one-lane entries read one by one (no kernel each; about 0.5 us an entry, so only
+    the entries used): (the translation column, the first column of the linear part --
+    its length is the radius --, the columns of Mitsuba's own world-to-object matrix as
+    4 x 3 nested lists or None without ``uv``). The world-to-object matrix is the
+    transpose of ``inverse_transpose``: its column j holds the first three entries of row
+    j of the latter."""
+    m = to_world.matrix
+    rows = m[0], m[1], m[2]
+    center = [row[3][0] for row in rows]
+    axis = [row[0][0] for row in rows]
+    if not uv:
+        return center, axis, None
+    it = to_world.inverse_transpose
+    return center, axis, [[row[i][0] for i in range(3)] for row in (it[j] for j in range(4))]
+
+
 class HitTable:
     """The geometry of a scene by shape id (see the module docstring): ``update(scene)``
     before each render, then ``intersect``; the mesh arrays also serve the terminator lift
@@ -49,10 +88,14 @@ class HitTable:
 
     def __init__(self):
         self.key = None
+        self.uv = False
         self.supported = False
 
     # -- the table ---------------------------------------------------------------------------
-    def update(self, scene):
+    def update(self, scene, uv=True):
+        """The table of ``scene`` (rebuilt only if its shapes changed). ``uv``: whether the
+        hits' texture coordinates are used (a checkerboard or an image texture); without
+        them the spheres' uv are 0 and their world-to-object matrices are not read."""
         shapes = scene.shapes()
         ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr()).numpy() if shapes else []
         key, buffers = [], []
@@ -69,9 +112,9 @@ class HitTable:
             else:  # not in the table: its hits need Mitsuba's dispatch
                 key.append((int(shape_id), "other"))
                 buffers.append(None)
-        if key == self.key:
+        if key == self.key and (self.uv or not uv):
             return self
-        self.key, self.buffers = key, buffers  # kept: see the module docstring
+        self.key, self.buffers, self.uv = key, buffers, uv  # kept: see the module docstring
         self.supported = bool(key) and all(k[1] != "other" for k in key)
         self.build(ids, key, buffers)
         return self
@@ -89,12 +132,7 @@ class HitTable:
                 continue
             if k[1] == "sphere":
                 kind[shape_id], first[shape_id] = SPHERE, len(spheres)
-                to_world = mi.traverse(item)["to_world"]
-                # (dr.slice: host values of the one-lane matrices, without a kernel each)
-                matrix = np.array(dr.slice(to_world.matrix, 0), np.float32)
-                # Mitsuba's own world-to-object matrix (the transpose of its inverse transpose)
-                inverse = np.array(dr.slice(to_world.inverse_transpose, 0), np.float32).T
-                spheres.append((matrix, inverse))
+                spheres.append(sphere_rows(shape_property(item, "to_world"), self.uv))
                 continue
             face_buf, position_buf, normal_buf, texcoord_buf = item
             mesh_faces = face_buf.numpy().astype(np.int64)
@@ -129,14 +167,15 @@ class HitTable:
         self.normals = upload(normals if self.has_smooth else [], np.float32, 3)
         self.texcoords = upload(texcoords if self.has_texcoords else [], np.float32, 2)
         if spheres:
-            m = np.array([matrix for matrix, _ in spheres])
-            inverse = np.array([inverse for _, inverse in spheres])
-            self.center = mi.Point3f(*(mi.Float(np.ascontiguousarray(m[:, i, 3])) for i in range(3)))
-            self.radius = mi.Float(np.linalg.norm(m[:, :3, 0].astype(np.float64), axis=1)
+            center = np.array([c for c, _, _ in spheres], np.float32)
+            axis = np.array([a for _, a, _ in spheres], np.float32)
+            self.center = mi.Point3f(*(mi.Float(np.ascontiguousarray(center[:, i]))
+                                       for i in range(3)))
+            self.radius = mi.Float(np.linalg.norm(axis.astype(np.float64), axis=1)
                                    .astype(np.float32))
             # columns of the world-to-object transform (its first three rows), 4 x 3 per sphere
-            self.to_object = mi.Float(np.ascontiguousarray(
-                inverse[:, :3, :].transpose(0, 2, 1)).ravel())
+            self.to_object = mi.Float(np.array([t for _, _, t in spheres], np.float32).ravel()) \
+                if self.uv else None
 
     # -- the hits ----------------------------------------------------------------------------
     def intersect(self, scene, ray, coherent=False):
@@ -220,6 +259,8 @@ class HitTable:
             t = dr.replace_grad(t, dr.select(dr.abs(near - t) <= dr.abs(far - t), near, far))
         p = ray(t)
         n = mi.Normal3f(dr.normalize(p - center))
+        if self.to_object is None:  # no uv used (see update)
+            return t, p, n, mi.Point2f(0.0)
         columns = [dr.gather(mi.Vector3f, self.to_object, row * 4 + i, sphere) for i in range(4)]
         local = dr.fma(columns[2], p.z, dr.fma(columns[1], p.y, dr.fma(columns[0], p.x,
                                                                       columns[3])))

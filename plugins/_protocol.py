@@ -75,11 +75,11 @@ def missing(plugin, names):
 
 def check_surface(bsdf, shape=None):
     """``bsdf``, unchanged, if it provides the surface interface; else an InterfaceError."""
-    where = f" (the BSDF of shape {describe(shape)})" if shape is not None else ""
     lacking = missing(bsdf, ("material", "checker_size", "image_textures"))
     if not lacking:
         lacking = [f"material.{name}" for name in missing(bsdf.material, SURFACE_PARAMETERS)]
     if lacking:
+        where = f" (the BSDF of shape {describe(shape)})" if shape is not None else ""
         raise InterfaceError(
             f"raywhitted: the BSDF {describe(bsdf)}{where} is not a raymitsuba surface: it does "
             f"not provide {', '.join(lacking)} (see plugins/_protocol.py; use rayphong or "

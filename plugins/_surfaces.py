@@ -104,6 +104,8 @@ class Surfaces:
         sizes[:len(bsdfs)] = [float(bsdf.checker_size) for bsdf in bsdfs]
         self.checker_size = mi.Float(sizes) if np.any(sizes > 0) else None
         self.set_textures(bsdfs)
+        # Whether shading reads the hits' texture coordinates (HitTable.update's uv).
+        self.uses_uv = self.checker_size is not None or bool(self.textures)
         # Whether any surface lets shadow rays through (kt > 0).
         self.any_transparent = bool(np.any(self.host["refractivity"] > 0))
 
@@ -139,14 +141,14 @@ class Surfaces:
         attached = []
         for m, material in enumerate(materials):
             color = material.color
+            values = [getattr(material, name) for name in FLOAT_PARAMS]
             host["color"][m] = (color.x[0], color.y[0], color.z[0])
-            if dr.grad_enabled(color):
-                attached.append(("color", m, color))
-            for name in FLOAT_PARAMS:
-                value = getattr(material, name)
+            for name, value in zip(FLOAT_PARAMS, values):
                 host[name][m] = value[0]
-                if dr.grad_enabled(value):
-                    attached.append((name, m, value))
+            if dr.grad_enabled(color, values):  # (one call: most materials have none)
+                attached += [(name, m, value) for name, value in
+                             zip(("color",) + tuple(FLOAT_PARAMS), [color] + values)
+                             if dr.grad_enabled(value)]
         by_slot = {name: np.zeros((rows,) + values.shape[1:], np.float32)
                    for name, values in host.items()}
         for name, values in host.items():

@@ -21,6 +21,8 @@ Conventions, decided here once:
 import drjit as dr
 import mitsuba as mi
 
+from raymitsuba.parser import no_cyclic_gc
+
 from ._hits import HitTable
 from ._lift import lifted_point
 from ._surfaces import NO_SLOT, SceneTerms, with_kt_derivative
@@ -113,8 +115,9 @@ class Tracer:
     def scene_terms(self, scene):
         """What shading needs from ``scene`` (its SceneTerms, with the geometry table), built
         once per render and shared by its chunks."""
-        terms = SceneTerms(scene)
-        terms.geometry = self.geometry.update(scene)
+        with no_cyclic_gc():  # a Python pass over every shape and surface
+            terms = SceneTerms(scene)
+            terms.geometry = self.geometry.update(scene, uv=terms.surfaces.uses_uv)
         return terms
 
     def trace(self, scene, ray, terms=None):

@@ -148,8 +148,9 @@ def _read_scene_bytes(path) -> bytes:
 
 
 @contextlib.contextmanager
-def _no_cyclic_gc():
-    """Pause the cyclic garbage collector while a parse builds its (acyclic) objects.
+def no_cyclic_gc():
+    """Pause the cyclic garbage collector while a parse (or a load: api.load, the
+    integrator's scene tables) builds its (acyclic) objects.
 
     A large scene allocates millions of tuples; each allocation burst would
     otherwise trigger collections that re-scan everything built so far.
@@ -237,7 +238,7 @@ def detect_dialect(lines: List[str], diagnostics: Optional[Diagnostics] = None) 
 
 def _run(data: Union[str, bytes], file: str, base_dir: Optional[str], dialect: str) -> Scene:
     _check_dialect(dialect)
-    with _no_cyclic_gc():
+    with no_cyclic_gc():
         lexical = Diagnostics(file)
         lines = decode(data, lexical.error)
         if dialect == "auto":

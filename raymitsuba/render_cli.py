@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import sys
 import time
 
@@ -121,6 +122,10 @@ def render(scene, output, width, height, spp, max_depth, aa, memory_budget, bail
         loaded = api.load(model, width=width, height=height, spp=spp, max_depth=max_depth,
                           srgb=srgb, aa=aa, memory_budget=budget, bailout=bailout,
                           time_limit=time_limit)
+        # The scene's objects (10^4s of them) live until the command exits: out of the cyclic
+        # collector's sight, so that no collection re-scans them (0.09 s at 10^4 objects);
+        # given back to it at the end (the command may run inside a longer process).
+        gc.freeze()
         integrator = loaded.integrator
         integrator.progress = progress
         if images.is_8bit(output) and not aa:
@@ -149,3 +154,4 @@ def render(scene, output, width, height, spp, max_depth, aa, memory_budget, bail
         fail(COMMAND, f"{scene}: {error_message(e)}", EXIT_FAILURE)
     finally:
         progress.close()
+        gc.unfreeze()

@@ -106,6 +106,18 @@ def test_equal_materials_and_lights_keep_their_own_keys():
     np.testing.assert_array_equal(after[4, 24, [1, 0, 2]], before[4, 24])
 
 
+def test_params_are_traversed_at_their_first_use_and_kept():
+    # A render through the integrator (as the CLI renders) does not traverse the scene;
+    # loaded.params does, once.
+    loaded = raymitsuba.load(SCENE, width=9, height=9)
+    assert loaded._params is None
+    image = loaded.integrator.render_array(loaded.scene)
+    assert loaded._params is None and image.shape == (9, 9, 3)
+    params = loaded.params
+    assert params is loaded.params and "mat1.color" in params
+    np.testing.assert_array_equal(np.array(raymitsuba.render(loaded)), image)
+
+
 def test_changing_parameters_changes_the_render():
     loaded = raymitsuba.load(SCENE, width=9, height=9)
     params = loaded.params

@@ -125,3 +125,88 @@ def test_a_shape_outside_the_table_falls_back_to_mitsuba(mitsuba):
     assert not HitTable().update(scene).supported
     image = np.array(mi.render(scene))
     assert image.shape == (8, 8, 3) and image.max() > 0
+
+
+def test_sphere_rows_are_read_as_mi_traverse_reads_them(mitsuba):
+    # The table reads each sphere's transform directly (shape_property, sphere_rows), not
+    # through mi.traverse and dr.slice of the whole matrices: the same values, bit for bit.
+    import drjit as dr
+
+    from raymitsuba.plugins._hits import HitTable, shape_property, sphere_rows
+
+    mi = mitsuba
+    text = "light 1 1 1 point 0 0 5\n" + "".join(
+        f"rotateZ {17 * k}\nrotateX {29 * k}\nscale {0.2 + 0.1 * k} {0.2 + 0.1 * k} "
+        f"{0.2 + 0.1 * k}\ntranslate {k - 2} {0.5 * k} {-k}\nsphere\npop\npop\npop\npop\n"
+        for k in range(5))
+    scene = load_ray(text, 8, 8).scene
+    spheres = [s for s in scene.shapes() if s.class_name() == "Sphere"]
+    assert len(spheres) == 5
+    table = HitTable().update(scene)
+    first = np.array(table.first)
+    for shape in spheres:
+        row = first[dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0]]
+        to_world = mi.traverse(shape)["to_world"]
+        assert shape_property(shape, "to_world") == to_world
+        matrix = np.array(dr.slice(to_world.matrix, 0), np.float32)
+        inverse = np.array(dr.slice(to_world.inverse_transpose, 0), np.float32).T
+        center, axis, to_object = (np.array(v, np.float32) for v in sphere_rows(to_world))
+        assert np.array_equal(center, matrix[:3, 3]) and np.array_equal(axis, matrix[:3, 0])
+        assert np.array_equal(to_object, inverse[:3, :].T)
+        assert sphere_rows(to_world, uv=False)[2] is None
+        # and the table's row of this sphere holds them
+        assert np.array_equal(np.array([np.array(c)[row] for c in table.center]), center)
+        np.testing.assert_array_equal(np.array(table.radius)[row],
+                                      np.float32(np.linalg.norm(axis.astype(np.float64))))
+        assert np.array_equal(np.array(table.to_object).reshape(-1, 4, 3)[row], to_object)
+
+
+def test_a_table_without_uv_has_the_same_hits_and_zero_sphere_uv(mitsuba, hits):
+    # update(scene, uv=False) (no checkerboard, no image texture) skips the spheres'
+    # world-to-object matrices: the same t, p, n; sphere uv 0; meshes' uv unchanged.
+    import drjit as dr
+
+    from raymitsuba.plugins._hits import HitTable
+
+    scene, table, ray, _, with_uv = hits
+    plain = HitTable().update(scene, uv=False)
+    assert plain.to_object is None and not plain.uv
+    got = plain.intersect(scene, ray, True)
+    valid = np.array(with_uv.is_valid())
+    a, b = fields(with_uv), fields(got)
+    for name in ("t", "p", "n", "sh_n"):
+        assert np.array_equal(np.array(a[name]), np.array(b[name])), name
+    spheres = {dr.reinterpret_array(mitsuba.UInt32, mitsuba.ShapePtr(s))[0]
+               for s in scene.shapes() if s.class_name() == "Sphere"}
+    on_sphere = np.isin(np.array(dr.reinterpret_array(mitsuba.UInt32, got.shape)), list(spheres))
+    uv, uv_with = np.array(b["uv"]), np.array(a["uv"])
+    assert np.all(uv[:, valid & on_sphere] == 0)
+    assert np.array_equal(uv[:, valid & ~on_sphere], uv_with[:, valid & ~on_sphere])
+    # asked for uv later, the same table rebuilds with them; asked without, it keeps them
+    assert plain.update(scene, uv=True).to_object is not None and plain.uv
+    assert table.update(scene, uv=False).to_object is not None
+
+
+def test_the_integrator_reads_sphere_uv_only_for_textures(mitsuba, tmp_path):
+    # The geometry table skips the spheres' uv unless a surface has a checkerboard or an
+    # image texture; a textured sphere still gets its texture's two halves.
+    from PIL import Image
+
+    import raymitsuba
+
+    plain = raymitsuba.load("eye 0 0 5\nlight 1 1 1 point 0 0 5\nsphere\n", width=24, height=24)
+    tracer = plain.integrator.tracer
+    assert not tracer.scene_terms(plain.scene).geometry.uv
+    texture = np.zeros((2, 2, 3), np.uint8)
+    texture[:, 0] = (255, 0, 0)  # u < 1/2: red; u >= 1/2: green
+    texture[:, 1] = (0, 255, 0)
+    Image.fromarray(texture).save(tmp_path / "halves.png")
+    path = tmp_path / "textured.ray"
+    path.write_text("eye 0 0 5\nlight 1 1 1 point 0 0 5\ntexture halves.png\nrotateX 90\n"
+                    "sphere\n")
+    textured = raymitsuba.load(str(path), width=24, height=24)
+    assert textured.integrator.tracer.scene_terms(textured.scene).geometry.uv
+    image = textured.integrator.render_array(textured.scene)
+    red = image[..., 0] > image[..., 1] + 0.05
+    green = image[..., 1] > image[..., 0] + 0.05
+    assert red.sum() > 20 and green.sum() > 20

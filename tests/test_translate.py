@@ -48,7 +48,8 @@ def test_ids_of_materials_lights_background_integrator_and_sensor(translate):
     assert [mat1[f] for f in ("ambient_mix", "diffuse_mix", "specular_mix", "phong_coeff",
                               "reflectivity", "refractivity", "ior")] == \
         pytest.approx([0.1, 0.2, 0.3, 4, 0.5, 0.6, 1.7])
-    assert d["mat0"]["ambient_mix"] == 1.0 and d["mat0"]["specular_mix"] == 0.0  # the default
+    # the default material: its color alone (the plugin has the defaults; see below)
+    assert "ambient_mix" not in d["mat0"] and "specular_mix" not in d["mat0"]
     assert "mat3" not in d
 
     # light{j} counts `light` lines from 1, whatever their kind.
@@ -334,3 +335,25 @@ def test_tessellation_budget_gives_way_at_the_floor_then_refuses(translate):
         translate(QUADRICS, tessellation_budget=10, tessellation_limit=floor - 1)
     message = str(info.value)
     assert "\n" not in message and f"need {floor} triangles" in message and "39 curved" in message
+
+
+def test_a_material_passes_only_the_fields_off_their_default(translate, mitsuba):
+    # The rayphong gets a field only where it differs from the default (down to the sign of
+    # a zero); loaded, every material has all of its values.
+    import raymitsuba
+
+    text = ("light 1 1 1 point 0 0 5\nmaterial 1 1 1  1 0.5 0 1  -0 0 1\nsphere\n"
+            "material 0.5 0.5 0.5  1 1 0 1  0 0 1.5\ntranslate 2 0 0\nsphere\n")
+    d = translate(text)
+    assert set(d["mat0"]) == {"type", "id", "index", "color"}
+    assert set(d["mat1"]) == {"type", "id", "index", "color", "diffuse_mix", "reflectivity"}
+    assert d["mat1"]["diffuse_mix"] == 0.5 and str(d["mat1"]["reflectivity"]) == "-0.0"
+    assert set(d["mat2"]) == {"type", "id", "index", "color", "ior"}
+    params = raymitsuba.load(text, width=4, height=4).params
+    want = {"mat0": (1, 1, 0, 1, 0, 0, 1), "mat1": (1, 0.5, 0, 1, -0.0, 0, 1),
+            "mat2": (1, 1, 0, 1, 0, 0, 1.5)}
+    for key, values in want.items():
+        for name, value in zip(("ambient_mix", "diffuse_mix", "specular_mix", "phong_coeff",
+                                "reflectivity", "refractivity", "ior"), values):
+            got = float(params[f"{key}.{name}"][0])
+            assert got == value and np.copysign(1, got) == np.copysign(1, value), (key, name)
