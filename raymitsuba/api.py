@@ -107,5 +107,12 @@ def render(loaded: Loaded, spp: int | None = None, params=None):
     from raymitsuba.backend import mitsuba
 
     mi = mitsuba()
-    return mi.render(loaded.scene, params=loaded.params if params is None else params,
-                     spp=int(spp or loaded.options.spp))
+    import drjit as dr  # after mitsuba(): the variant and libLLVM are chosen there
+
+    if params is None:
+        params = loaded.params
+        # mi.render walks every parameter it is given (10 per material) at each call; with
+        # none that has gradients enabled there is nothing to attach: a primal render.
+        if not any(dr.grad_enabled(params[key]) for key in params.keys()):
+            params = None
+    return mi.render(loaded.scene, params=params, spp=int(spp or loaded.options.spp))
