@@ -13,6 +13,8 @@ provide its part.
   floats ka, kd, ks, n, kr, kt, eta (mi.Float), each of width 1 (see ``phong.py``
   for their meaning). Surfaces that share a material share these very objects, so
   they share their values and their gradients.
+  The material also keeps ``host_values``: the same values as a tuple of Python floats
+  (r, g, b, ka, kd, ks, n, kr, kt, eta), current after every ``SceneParameters.update``.
 * ``checker_size`` (float): > 0: the base color is multiplied by the .RAY
   checkerboard of squares of this side (``checkerboard.checker``); 0: no checkerboard.
 * ``image_textures`` (tuple of mi.Texture): each ``texture.eval(si)`` multiplies
@@ -77,7 +79,8 @@ def check_surface(bsdf, shape=None):
     """``bsdf``, unchanged, if it provides the surface interface; else an InterfaceError."""
     lacking = missing(bsdf, ("material", "checker_size", "image_textures"))
     if not lacking:
-        lacking = [f"material.{name}" for name in missing(bsdf.material, SURFACE_PARAMETERS)]
+        lacking = [f"material.{name}"
+                   for name in missing(bsdf.material, SURFACE_PARAMETERS + ("host_values",))]
     if lacking:
         where = f" (the BSDF of shape {describe(shape)})" if shape is not None else ""
         raise InterfaceError(

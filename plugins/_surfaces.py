@@ -68,8 +68,8 @@ class SceneTerms:
     The direct (non-ambient) lights stay a Python list: the shading kernel has one term
     per light (scenes have a handful; the kernel grows with their number)."""
 
-    def __init__(self, scene):
-        self.surfaces = Surfaces(scene)
+    def __init__(self, scene, previous=None):
+        self.surfaces = Surfaces(scene, previous.surfaces if previous is not None else None)
         lights, backgrounds = [], []
         for emitter in scene.emitters():
             (lights if check_emitter(emitter) == "light" else backgrounds).append(emitter)
@@ -81,15 +81,43 @@ class SceneTerms:
         self.direct = [light for light in lights if not light.is_ambient]
 
 
+def shape_ids(scene):
+    """The registry ids of the scene's shapes (one vectorized read), in ``scene.shapes()``
+    order: they name the shapes while the scene lives."""
+    if not scene.shapes():
+        return np.zeros(0, np.uint32)
+    return dr.reinterpret_array(mi.UInt32, scene.shapes_dr()).numpy()
+
+
+# What a Surfaces table keeps from one render to the next of the same shapes (set_layout).
+LAYOUT = ("key", "count", "slot_of_shape", "materials", "material_of_slot", "checker_size",
+          "textures", "texture_of_slot", "uses_uv")
+
+
 class Surfaces:
     """The parameters of every surface of a scene as arrays indexed by a *slot* (see the
     module docstring): ``color`` (Color3f) and one mi.Float per name of FLOAT_PARAMS,
     ``checker_size`` (None if no surface has a checkerboard), the distinct image
     ``textures`` and, per slot, which of them apply (``texture_of_slot``)."""
 
-    def __init__(self, scene):
-        shapes = scene.shapes()
-        bsdfs = self.distinct_bsdfs(scene, shapes)
+    def __init__(self, scene, previous=None):
+        """The table of ``scene``; ``previous``: the table of an earlier render, whose
+        layout (slots, materials, textures, checker sizes: fixed once a scene is loaded) is
+        reused when the scene's shapes are the same ones. The values are read anew."""
+        key = shape_ids(scene)
+        if previous is not None and np.array_equal(previous.key, key):
+            self.__dict__.update({name: getattr(previous, name) for name in LAYOUT})
+        else:
+            self.set_layout(scene, key)
+        self.set_parameters(self.materials, self.material_of_slot)
+        # Whether any surface lets shadow rays through (kt > 0).
+        self.any_transparent = bool(np.any(self.host["refractivity"] > 0))
+
+    def set_layout(self, scene, key):
+        """Slots, materials, checker sizes and textures: what a render reads from the
+        scene's plugins besides the parameter values."""
+        self.key = key
+        bsdfs = self.distinct_bsdfs(scene, scene.shapes(), key)
         self.count = len(bsdfs)
 
         # Materials: each distinct one once, with the slots that use it.
@@ -97,8 +125,8 @@ class Surfaces:
         for slot, bsdf in enumerate(bsdfs):
             material_of_slot[slot] = materials.setdefault(id(bsdf.material),
                                                           (len(materials), bsdf.material))[0]
-        materials = [material for _, material in materials.values()]
-        self.set_parameters(materials, material_of_slot)
+        self.materials = [material for _, material in materials.values()]
+        self.material_of_slot = material_of_slot
 
         sizes = np.zeros(max(len(bsdfs), MIN_ROWS), np.float32)
         sizes[:len(bsdfs)] = [float(bsdf.checker_size) for bsdf in bsdfs]
@@ -106,10 +134,8 @@ class Surfaces:
         self.set_textures(bsdfs)
         # Whether shading reads the hits' texture coordinates (HitTable.update's uv).
         self.uses_uv = self.checker_size is not None or bool(self.textures)
-        # Whether any surface lets shadow rays through (kt > 0).
-        self.any_transparent = bool(np.any(self.host["refractivity"] > 0))
 
-    def distinct_bsdfs(self, scene, shapes):
+    def distinct_bsdfs(self, scene, shapes, shape_ids):
         """The scene's distinct BSDFs in slot order (increasing registry id), each checked
         against the surface interface; sets ``slot_of_shape`` (by shape registry id)."""
         if not shapes:
@@ -117,7 +143,6 @@ class Surfaces:
             return []
         # (Not ``shapes_dr().bsdf()``: that getter is a kernel, folded to a constant when
         # all shapes share one BSDF, so its code would depend on the scene.)
-        shape_ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr()).numpy()
         bsdfs, index_of_shape = {}, np.empty(len(shapes), np.int64)
         for i, shape in enumerate(shapes):
             bsdf = shape.bsdf()
@@ -133,21 +158,19 @@ class Surfaces:
         return [check_surface(found[i][1], found[i][2]) for i in order]
 
     def set_parameters(self, materials, material_of_slot):
-        """One array per parameter, by slot: host values uploaded once, then a scatter per
-        value whose gradient is enabled."""
+        """One array per parameter, by slot: host values (each material's ``host_values``)
+        uploaded once, then a scatter per value whose gradient is enabled."""
         rows = max(len(material_of_slot), MIN_ROWS)  # rows past the last slot: zeros
-        host = {"color": np.zeros((len(materials), 3), np.float32)}
-        host.update({name: np.zeros(len(materials), np.float32) for name in FLOAT_PARAMS})
+        values = np.array([material.host_values for material in materials],
+                          np.float32).reshape(len(materials), 3 + len(FLOAT_PARAMS))
+        host = {"color": values[:, :3]}
+        host.update({name: values[:, 3 + k] for k, name in enumerate(FLOAT_PARAMS)})
         attached = []
         for m, material in enumerate(materials):
-            color = material.color
-            values = [getattr(material, name) for name in FLOAT_PARAMS]
-            host["color"][m] = (color.x[0], color.y[0], color.z[0])
-            for name, value in zip(FLOAT_PARAMS, values):
-                host[name][m] = value[0]
-            if dr.grad_enabled(color, values):  # (one call: most materials have none)
+            params = [material.color] + [getattr(material, name) for name in FLOAT_PARAMS]
+            if dr.grad_enabled(params):  # (one call: most materials have none)
                 attached += [(name, m, value) for name, value in
-                             zip(("color",) + tuple(FLOAT_PARAMS), [color] + values)
+                             zip(("color",) + tuple(FLOAT_PARAMS), params)
                              if dr.grad_enabled(value)]
         by_slot = {name: np.zeros((rows,) + values.shape[1:], np.float32)
                    for name, values in host.items()}

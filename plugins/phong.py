@@ -56,16 +56,22 @@ class Phong(mi.BSDF):
     def __init__(self, props):
         super().__init__(props)
         self.index = int(props.get("index", 0))
-        self.color = mi.Color3f(props.get("color", mi.ScalarColor3f(1.0)))
-        for name in FLOAT_PARAMS:
-            setattr(self, name, mi.Float(props.get(name, DEFAULTS[name])))
+        color = props.get("color", mi.ScalarColor3f(1.0))
+        values = [float(props.get(name, DEFAULTS[name])) for name in FLOAT_PARAMS]
+        self.color = mi.Color3f(color)
+        for name, value in zip(FLOAT_PARAMS, values):
+            setattr(self, name, mi.Float(value))
+        self.host_values = (color[0], color[1], color[2], *values)
         self.parameters_changed([])
         self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.GlossyReflection \
             | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
         self.m_components = [self.m_flags]
 
     # The surface interface (plugins/_protocol.py): a plain material is its own material,
-    # with no checkerboard and no image texture.
+    # with no checkerboard and no image texture. ``host_values``: the parameters' values
+    # as Python floats, kept by ``parameters_changed`` (Mitsuba calls it on every
+    # ``SceneParameters.update`` that changes one), so a render reads 10^4 materials
+    # without 10^5 reads of single Dr.Jit values.
     @property
     def material(self):
         return self
@@ -82,6 +88,14 @@ class Phong(mi.BSDF):
         # Opaque: a new value must not become a new constant in the kernels (a recompile
         # at every step of a fit).
         dr.make_opaque(self.color, *(getattr(self, name) for name in FLOAT_PARAMS))
+        if keys:
+            self.host_values = self.read_values()
+
+    def read_values(self):
+        """(r, g, b, ka, kd, ks, n, kr, kt, eta) as Python floats, read from the parameters."""
+        color = self.color
+        return (color.x[0], color.y[0], color.z[0],
+                *(getattr(self, name)[0] for name in FLOAT_PARAMS))
 
     def to_string(self):
         return f"Phong[color={self.color}, kd={self.diffuse_mix}, ks={self.specular_mix}]"

@@ -173,3 +173,34 @@ def test_a_scene_without_objects_has_slots_of_zeros(mitsuba):
     surfaces = Surfaces(mitsuba.load_dict({"type": "scene"}))
     assert surfaces.count == 0 and not surfaces.any_transparent
     assert not np.any(np.array(surfaces.diffuse_mix))
+
+
+def test_a_later_table_of_the_same_shapes_keeps_the_layout_and_reads_the_values_anew(
+        mitsuba, scene):
+    """The slots, materials and textures are read from the plugins once per scene (a render
+    reuses the previous render's layout); the parameter values are read at every render, as
+    the materials keep them (``host_values``, current after SceneParameters.update)."""
+    from raymitsuba.plugins._surfaces import Surfaces
+
+    first = Surfaces(scene)
+    params = mitsuba.traverse(scene)
+    params["matB.color"] = mitsuba.Color3f(0.9, 0.8, 0.7)
+    params["matA.ior"] = 2.5
+    params.update()
+    later = Surfaces(scene, first)
+    assert later.slot_of_shape is first.slot_of_shape and later.materials is first.materials
+    slot_b = slots_of_shapes(mitsuba, scene, later)[3]
+    slot_a = slots_of_shapes(mitsuba, scene, later)[0]
+    np.testing.assert_allclose(later.host["color"][slot_b], [0.9, 0.8, 0.7], rtol=1e-6)
+    assert later.host["ior"][slot_a] == pytest.approx(2.5)
+    np.testing.assert_allclose(np.array(later.color)[:, slot_b], [0.9, 0.8, 0.7], rtol=1e-6)
+    assert first.host["ior"][slot_a] == pytest.approx(A["ior"])  # the first table kept its own
+
+
+def test_a_table_of_other_shapes_builds_its_own_layout(mitsuba, scene):
+    from raymitsuba.plugins._surfaces import Surfaces
+
+    other = mitsuba.load_dict({"type": "scene", "m": material(mitsuba, B),
+                               "s": sphere(0, {"type": "ref", "id": "m"})})
+    table = Surfaces(other, Surfaces(scene))
+    assert table.count == 1 and table.host["diffuse_mix"][0] == pytest.approx(B["diffuse_mix"])
