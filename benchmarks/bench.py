@@ -74,17 +74,24 @@ def first_render(path, width, height, spp):
     return {"load": t1 - t0, "first": t2 - t1}
 
 
-def warm_renders(path, width, height, spp, repeats):
+def warm_render_times(loaded, repeats):
+    """Seconds of ``repeats`` renders of ``loaded`` after a first one (kernels compiled)."""
     import raymitsuba
 
-    loaded = raymitsuba.load(path, width=width, height=height, spp=spp)
     raymitsuba.render(loaded).numpy()
     times = []
     for _ in range(repeats):
         t = time.perf_counter()
         raymitsuba.render(loaded).numpy()
         times.append(time.perf_counter() - t)
-    return {"times": times, "rays": loaded.integrator.rays_traced}
+    return times
+
+
+def warm_renders(path, width, height, spp, repeats):
+    import raymitsuba
+
+    loaded = raymitsuba.load(path, width=width, height=height, spp=spp)
+    return {"times": warm_render_times(loaded, repeats), "rays": loaded.integrator.rays_traced}
 
 
 def native_direct(path, width, height, spp, repeats):

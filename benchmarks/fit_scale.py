@@ -21,21 +21,10 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench import warm_render_times  # noqa: E402
 from scale_bench import spheres  # noqa: E402
 
 KEYS = ["mat1.color", "mat1.diffuse_mix", "mat1.specular_mix"]
-
-
-def warm_render(loaded, repeats=10):
-    import raymitsuba
-
-    raymitsuba.render(loaded).numpy()
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        raymitsuba.render(loaded).numpy()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def fit_step(text, width, height):
@@ -44,7 +33,7 @@ def fit_step(text, width, height):
 
     target = np.array(raymitsuba.render(raymitsuba.load(text, width=width, height=height)))
     loaded = raymitsuba.load(text, width=width, height=height)
-    render = warm_render(loaded)
+    render = statistics.median(warm_render_times(loaded, 10))
     loaded.params["mat1.diffuse_mix"] = 0.3
     loaded.params.update()
     stamps = []

@@ -21,6 +21,7 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench import warm_render_times  # noqa: E402
 from scale_bench import spheres  # noqa: E402
 
 
@@ -40,12 +41,7 @@ def measure(text, width, height):
     t = time.perf_counter()
     raymitsuba.render(loaded).numpy()
     first = time.perf_counter() - t
-    warm = []
-    for _ in range(10):
-        t = time.perf_counter()
-        raymitsuba.render(loaded).numpy()
-        warm.append(time.perf_counter() - t)
-    return first, statistics.median(warm)
+    return first, statistics.median(warm_render_times(loaded, 10))
 
 
 def main():
