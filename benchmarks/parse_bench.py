@@ -21,7 +21,7 @@ import argparse
 import statistics
 import time
 
-from raymitsuba.parser import parse_text
+from raymitsuba.format.parser import parse_text
 
 BLOCK = """\
 # a block of 20 lines that leaves the stack as it found it

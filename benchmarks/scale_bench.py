@@ -141,7 +141,7 @@ def stages(path, warm_repeats):
     from raymitsuba.backend import mitsuba
 
     mi = mitsuba(mitsuba_integrators=False)
-    from raymitsuba.parser import parse_file
+    from raymitsuba.format.parser import parse_file
     from raymitsuba.translate import Options, translate
 
     out = {}
@@ -199,7 +199,7 @@ def povray_command(path, workdir):
     if not shutil.which("povray"):
         return None
     from povray import export
-    from raymitsuba.parser import parse_file
+    from raymitsuba.format.parser import parse_file
 
     pov = os.path.join(workdir, os.path.basename(path)[:-4] + ".pov")
     with open(pov, "w") as f:

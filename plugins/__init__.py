@@ -3,7 +3,7 @@
 =================  =========  ===============================================
 plugin name        kind       file
 =================  =========  ===============================================
-``raywhitted``     integrator ``whitted.py``: the recursive ray tracer
+``raywhitted``     integrator ``whitted/``: the recursive ray tracer (a package)
 ``rayphong``       BSDF       ``phong.py``: the .RAY material
 ``raytextured``    BSDF       ``textured.py``: a material times textures
 ``raychecker``     texture    ``checkerboard.py``: the plane checkerboard
@@ -13,12 +13,8 @@ plugin name        kind       file
 ``raytriangles``   shape      ``triangles.py``: a world-space mesh from arrays
 =================  =========  ===============================================
 
-Modules whose names start with ``_`` are pieces shared by plugins, not plugins:
-``_mesh.py`` (an object-space tessellation to a mesh), and the Whitted integrator's
-``_camera.py`` (camera rays, box filter), ``_protocol.py`` (what it reads from
-the plugins), ``_surfaces.py`` (the surface table), ``_hits.py`` (the geometry
-table: surface interactions by lookup), ``_lift.py`` (the terminator lift) and
-``_tree.py`` (the ray tree).
+``_mesh.py`` is not a plugin: the shape plugins' shared object-space tessellation to a
+mesh. The integrator's own parts live in its package, ``whitted/`` (see its index).
 
 Import this package only after a Mitsuba variant is set (see raymitsuba.backend).
 """

@@ -67,7 +67,7 @@ class Phong(mi.BSDF):
             | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
         self.m_components = [self.m_flags]
 
-    # The surface interface (plugins/_protocol.py): a plain material is its own material,
+    # The surface interface (plugins/whitted/protocol.py): a plain material is its own material,
     # with no checkerboard and no image texture. ``host_values``: the parameters' values
     # as Python floats, kept by ``parameters_changed`` (Mitsuba calls it on every
     # ``SceneParameters.update`` that changes one), so a render reads 10^4 materials

@@ -12,7 +12,7 @@ __all__ = ["Camera", "Diagnostic", "Light", "LightKind", "Material", "ObjectKind
 def __getattr__(name):
     # Lazy: `import raymitsuba` and `raymitsuba check` do not load Mitsuba.
     if name in ("parse", "parse_file", "parse_text"):
-        from raymitsuba import parser
+        from raymitsuba.format import parser
         return getattr(parser, name)
     if name in ("load", "render", "translate", "Loaded"):
         from raymitsuba import api

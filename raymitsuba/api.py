@@ -10,7 +10,7 @@ material's number in file order (``mat0`` is the default material) and field
 one of color, ambient_mix, diffuse_mix, specular_mix, phong_coeff,
 reflectivity, refractivity, ior; ``light{j}.color``, ``.position``,
 ``.direction``, ``.shape_coefficient`` with j counting ``light`` lines from 1;
-``background.color``. :class:`raymitsuba.commands.ParamKey` parses them.
+``background.color``. :class:`raymitsuba.format.commands.ParamKey` parses them.
 
 Both dialects load the same way (``dialect="auto"`` decides from the text; force it
 with ``"comp575"`` or ``"mit6837"``). The image size is ``width`` x ``height``; a
@@ -50,7 +50,7 @@ class Loaded:
 
 
 def parse_any(source, dialect: str = "auto") -> Scene:
-    from raymitsuba import parser
+    from raymitsuba.format import parser
 
     if isinstance(source, Scene):
         return source
@@ -74,7 +74,7 @@ def load(source, width=None, height=None, spp=1, max_depth=5, srgb=False, dialec
       (default 3600; 0: no limit).
     """
     from raymitsuba.backend import mitsuba
-    from raymitsuba.parser import no_cyclic_gc
+    from raymitsuba.util import no_cyclic_gc
 
     model = parse_any(source, dialect)
     mi = mitsuba()
@@ -103,7 +103,7 @@ def render(loaded: Loaded, spp: int | None = None, params=None):
     Traced in chunks within the loaded ``memory_budget`` and assembled on the host (16384 x
     16384 works: a 3.2 GB tensor); ``loaded.integrator.render_array(loaded.scene)`` gives
     the numpy array without the tensor's copy. A request no budget can hold raises
-    ``BudgetError`` (raymitsuba.plugins._chunks) before anything is traced."""
+    ``BudgetError`` (raymitsuba.plugins.whitted.chunks) before anything is traced."""
     from raymitsuba.backend import mitsuba
 
     mi = mitsuba()

@@ -37,39 +37,30 @@ Note that some parameters are only jointly determined by an image (a material's
 color times its diffuse mix times the light's color): fitting all of them lowers
 the loss but need not recover each one; pick ``keys`` accordingly.
 
-**Writing back** (:func:`rewrite_scene`): the .RAY text with only the fitted
-numbers replaced, every other byte unchanged (comments, spacing, line ends), in
-either dialect. Each key is parsed by :class:`raymitsuba.commands.ParamKey`; the
-command it lives on is found from the model's positions (``Material.line`` /
-``.column``, ``Light.line`` / ``.column``, ``Scene.background_at``), the operand
-from the table of commands (:mod:`raymitsuba.commands`: which token feeds which
-field, and whether the file holds the value or its reciprocal -- MIT 6.837's
-``index`` is 1 / eta), and the token from the dialect's own lexical rules
-(:func:`raymitsuba.lexer.tokens_from`; a MIT 6.837 command's operands may run onto
-the next lines). A number whose value did not change keeps its original spelling, a
-changed one is written as ``f"{x:.6g}"``.
+**Writing back**: :func:`rewrite_scene` (from :mod:`raymitsuba.format.writeback`, which
+says how) puts the fitted numbers into the .RAY text, every other byte unchanged.
 """
 
 from __future__ import annotations
 
 import fnmatch
 import math
-import re
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
+from typing import Callable, Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
-from raymitsuba import commands as C
 from raymitsuba.atomic import atomic_path
-from raymitsuba.commands import ParamKey
-from raymitsuba.lexer import LINE_END, tokens_from
-from raymitsuba.model import Material, Scene
+from raymitsuba.format.commands import ParamKey
+from raymitsuba.format.writeback import (MATERIAL_FIELDS, ParameterError, Value, model_values,
+                                         parse_key, rewrite_scene, writable_keys)
+from raymitsuba.model import Scene
 
-Value = Union[float, Tuple[float, ...]]
-
-MATERIAL_FIELDS = Material.FIELDS
+__all__ = ["FitError", "FitResult", "Step", "LOWER_BOUNDS", "MATERIAL_FIELDS", "Value",
+           "clamp_value", "default_keys", "field_of", "fit", "model_values", "parameter_error",
+           "rewrite_scene", "select_keys", "set_values", "to_python", "writable_keys",
+           "write_scene"]
 
 #: Lower bound of each field after every step (None: unbounded).
 LOWER_BOUNDS: Dict[str, Optional[float]] = {
@@ -78,27 +69,12 @@ LOWER_BOUNDS: Dict[str, Optional[float]] = {
     "position": None, "direction": None, "shape_coefficient": 0.0,
 }
 
-_LINE_END_KEPT = re.compile(f"({LINE_END.pattern})")  # re.split keeps the line ends
-
-
-class FitError(ValueError):
-    """A request the fit cannot carry out (unknown key, wrong target size, ...)."""
+#: What a request the fit cannot carry out raises (an unknown key, a wrong target size, a
+#: key with no line to write back to...): one class with the write-back's errors.
+FitError = ParameterError
 
 
 # -- which parameters ---------------------------------------------------------------------------
-def writable_keys(model: Scene) -> List[str]:
-    """Every parameter key whose value has a place in the .RAY file: the fields of each
-    ``material`` / ``surface`` line (mat1, mat2, ...), of each ``light`` line by kind, and
-    the background's color if it has a line."""
-    keys = [f"mat{m.index}.{name}" for m in model.materials if m.line is not None
-            for name in MATERIAL_FIELDS]
-    for light in model.lights:
-        keys += [f"light{light.index}.{name}" for name in C.light_fields(light.kind)]
-    if model.background_at is not None:
-        keys.append("background.color")
-    return keys
-
-
 def used_materials(model: Scene) -> List[int]:
     """The materials (indices) of the objects and meshes, sorted."""
     return sorted({obj.material for obj in model.objects} | {m.material for m in model.meshes})
@@ -157,14 +133,7 @@ def _why_not(model: Scene, item: str) -> str:
 
 
 def field_of(key: str) -> str:
-    return _key(key).field
-
-
-def _key(key: str) -> ParamKey:
-    try:
-        return ParamKey.parse(key)
-    except ValueError as e:
-        raise FitError(str(e)) from None
+    return parse_key(key).field
 
 
 # -- values ---------------------------------------------------------------------------------------
@@ -191,27 +160,6 @@ def parameter_error(fitted: Dict[str, Value], truth: Dict[str, Value]) -> Dict[s
         a = np.atleast_1d(np.asarray(value, np.float64))
         b = np.atleast_1d(np.asarray(truth[key], np.float64))
         out[key] = float(np.max(np.abs(a - b)))
-    return out
-
-
-def model_values(model: Scene, keys: Sequence[str]) -> Dict[str, Value]:
-    """The values of ``keys`` as written in ``model`` (e.g. a ground-truth scene)."""
-    out: Dict[str, Value] = {}
-    for key in keys:
-        parsed = _key(key)
-        name = parsed.field
-        if parsed.owner == "background":
-            value = model.background
-        elif parsed.owner == "mat":
-            material = _material(model, parsed)
-            value = getattr(material, name)
-        else:
-            light = _light(model, parsed)
-            value = getattr(light, "shape" if name == "shape_coefficient" else name)
-            if value is None:
-                raise FitError(f"`{key}`: light {parsed.index} is a {light.kind.value} light "
-                               f"and has no {name}")
-        out[key] = tuple(float(v) for v in value) if isinstance(value, tuple) else float(value)
     return out
 
 
@@ -354,113 +302,6 @@ def set_values(loaded, values: Dict[str, Value]) -> None:
 
 
 # -- writing back ---------------------------------------------------------------------------------
-def _format(x: float) -> str:
-    text = f"{x:.6g}"
-    return "0" if text == "-0" else text
-
-
-def _material(model: Scene, key: ParamKey) -> Material:
-    if key.index is None or key.index >= len(model.materials):
-        raise FitError(f"`{key}`: the scene has no material {key.index}")
-    if key.field not in MATERIAL_FIELDS:
-        raise FitError(f"`{key}`: a material has no {key.field}")
-    return model.materials[key.index]
-
-
-def _light(model: Scene, key: ParamKey):
-    if key.index is None or not 1 <= key.index <= len(model.lights):
-        raise FitError(f"`{key}`: the scene has no light {key.index}")
-    return model.lights[key.index - 1]
-
-
-@dataclass(frozen=True)
-class Place:
-    """Where the operands of a key are: the command's line and column, and the token
-    position of each component's operand with the operand (which may be a reciprocal)."""
-
-    line: int
-    column: int
-    operands: Tuple[Tuple[int, C.Operand], ...]
-
-
-def place_of(model: Scene, key: str) -> Place:
-    """Where ``key``'s operands are written in the .RAY text the model was parsed from."""
-    parsed = _key(key)
-    if parsed.owner == "background":
-        if model.background_at is None or parsed.field != "color":
-            raise FitError(f"`{key}`: the scene has no `background` line to write it to")
-        command = C.COMP575_COMMANDS["background"]
-        line, column = model.background_at
-    elif parsed.owner == "mat":
-        material = _material(model, parsed)
-        if material.line is None:
-            raise FitError(f"`{key}`: the default material has no `material` or `surface` line")
-        command = C.command_table(model.dialect)[C.MATERIAL_COMMAND[model.dialect]]
-        line, column = material.line, material.column or 1
-    else:
-        light = _light(model, parsed)
-        positions = C.light_positions(light.kind, parsed.field)
-        if not positions:
-            raise FitError(f"`{key}`: a {light.kind.value} light has no {parsed.field}")
-        operands = C.LIGHT_COLOR if parsed.field == "color" else C.LIGHT_OPERANDS[light.kind]
-        chosen = [o for o in operands if o.field == parsed.field]
-        return Place(light.line, light.column or 1, tuple(zip(positions, chosen)))
-    return Place(line, column, tuple(zip(command.positions(parsed.field),
-                                         command.operand_for(parsed.field))))
-
-
-def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value]) -> Union[bytes, str]:
-    """The .RAY source ``data`` with the operands of ``values``' keys replaced by the values.
-
-    Every other byte is kept. ``model`` must be the parse of ``data`` (its line numbers
-    locate the operands). A number whose value is unchanged (as float32, the precision of
-    the renderer) keeps its original spelling."""
-    is_bytes = isinstance(data, (bytes, bytearray))
-    text = bytes(data).decode("utf-8", "surrogateescape") if is_bytes else data
-    parts = _LINE_END_KEPT.split(text)  # line, end, line, end, ..., line
-    lines = parts[0::2]
-    edits: Dict[int, Dict[Tuple[int, int], str]] = {}  # line -> (start, end) -> new text
-    for key, value in values.items():
-        place = place_of(model, key)
-        components = value if isinstance(value, tuple) else (value,)
-        if len(components) != len(place.operands):
-            raise FitError(f"`{key}`: expected {len(place.operands)} value(s), "
-                           f"got {len(components)}")
-        if not 1 <= place.line <= len(lines):
-            raise FitError(f"line {place.line} is not in the scene text")
-        tokens = list(tokens_from(lines, place.line, place.column, model.dialect))
-        for (position, operand), component in zip(place.operands, components):
-            if not math.isfinite(component):
-                raise FitError(f"`{key}`: cannot write the non-finite value {component}")
-            if position >= len(tokens):
-                raise FitError(f"line {place.line} does not have operand {position}: "
-                               f"{lines[place.line - 1]!r}")
-            line, begin, end = tokens[position]
-            original = lines[line - 1][begin:end]
-            new = original if _same_float32(original, operand, component) \
-                else _format(operand.written(component))
-            edits.setdefault(line, {})[(begin, end)] = new
-    for line, changes in edits.items():
-        source = lines[line - 1]
-        out, last = [], 0
-        for (begin, end), new in sorted(changes.items()):
-            out += [source[last:begin], new]
-            last = end
-        out.append(source[last:])
-        parts[2 * (line - 1)] = "".join(out)
-    result = "".join(parts)
-    return result.encode("utf-8", "surrogateescape") if is_bytes else result
-
-
-def _same_float32(token: str, operand: C.Operand, value: float) -> bool:
-    """Whether the number ``token`` already means ``value`` (as float32, the renderer's
-    precision) for ``operand``."""
-    try:
-        return np.float32(operand.value(float(token))) == np.float32(value)
-    except (ValueError, ZeroDivisionError):
-        return False
-
-
 def write_scene(path: str, data: Union[bytes, str]) -> None:
     """Write ``data`` to ``path`` atomically (a temporary file renamed over it)."""
     if isinstance(data, str):

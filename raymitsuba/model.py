@@ -1,6 +1,6 @@
 """The scene model: what a .RAY file means, as typed, immutable values.
 
-The parser (:mod:`raymitsuba.parser`) is the only producer of these values and
+The parser (:mod:`raymitsuba.format.parser`) is the only producer of these values and
 the single source of truth for every decision the format leaves to it
 (defaults, the transform-stack order, which texture and checker state an
 object carries). Later stages -- the translator, the checker's summary, the

@@ -7,13 +7,17 @@
   value of a pixel in numpy (float64) without asking the renderer.
 * A few float64 intersection routines (sphere, ellipsoid, plane) and the contract's
   local shading formula, for the same purpose.
+* :data:`REPO`: the repository's root (test files live at several depths of tests/).
 """
 
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 # -- rendering ----------------------------------------------------------------------------------

@@ -184,7 +184,7 @@ def test_the_povray_export_reads_both_dialects():
                                     "benchmarks"))
     from povray import export
 
-    from raymitsuba.parser import parse_text
+    from raymitsuba.format.parser import parse_text
 
     mit = export(parse_text(MIT), 12, 8)
     assert mit.count("mesh {") == 1 and mit.count("triangle {") == 1 and "sphere {" in mit

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from raymitsuba import fit as F
-from raymitsuba.parser import parse_text
+from raymitsuba.format.parser import parse_text
 
 # Comments, tabs, odd spacing, several materials and every kind of light: everything but
 # the fitted numbers must survive a rewrite byte for byte.

@@ -31,7 +31,7 @@ def test_gallery_is_complete():
 
 @pytest.mark.parametrize("path", SCENES, ids=IDS)
 def test_scene_parses_without_warnings(path):
-    from raymitsuba.parser import parse_file
+    from raymitsuba.format.parser import parse_file
 
     scene = parse_file(path)  # raises RayError on any error
     assert scene.objects or scene.meshes, "a gallery scene shows something"
@@ -51,7 +51,7 @@ def test_scene_renders(path):
 
 
 def test_the_mit_6837_scenes_are_in_that_dialect_and_the_torus_is_large():
-    from raymitsuba.parser import parse_file
+    from raymitsuba.format.parser import parse_file
 
     mit = [p for p in SCENES if os.path.basename(p).startswith("mit6837_")]
     assert len(mit) >= 3

@@ -9,7 +9,7 @@ from support import intersect_sphere, normalize
 
 @pytest.fixture(scope="module")
 def translate(mitsuba):
-    from raymitsuba.parser import parse_text
+    from raymitsuba.format.parser import parse_text
     from raymitsuba.translate import Options, translate as run
 
     def go(text, **options):
@@ -140,7 +140,7 @@ def test_similarity_sphere_is_analytic_otherwise_a_smooth_mesh(translate, steps,
         return
     # The analytic sphere's to_world: the unit sphere onto the transformed one, with its
     # pole (local +z, where Mitsuba's sphere puts it) on object +y (the format's pole).
-    from raymitsuba.parser import parse_text
+    from raymitsuba.format.parser import parse_text
 
     model = np.array(parse_text("light 1 1 1 ambient\n" + steps + "sphere\n").objects[0].to_world)
     m = np.array(shape["to_world"].matrix, dtype=np.float64)
@@ -244,7 +244,7 @@ def test_triangles_in_bulk_match_one_by_one(translate):
     """A few hundred triangles under mirroring and non-mirroring transforms, interleaved:
     the bulk mesh has exactly the corners (float32), winding and texture coordinates of the
     triangle-by-triangle construction (as a set: the bulk groups them by transform)."""
-    from raymitsuba.parser import parse_text
+    from raymitsuba.format.parser import parse_text
 
     rng = np.random.default_rng(3)
     lines = ["light 1 1 1 ambient\n"]

@@ -1,0 +1,270 @@
+"""The surface interactions of the Whitted integrator, by lookup in one table of the scene's
+geometry instead of Mitsuba's per-shape dispatch.
+
+``scene.ray_intersect`` computes the surface interaction through a virtual call over
+*every* shape of the scene, which Dr.Jit traces once per shape each time (about 0.1 to
+0.2 ms per shape per call, a dozen calls per fit step: seconds at 10^3 shapes). Here a
+hit is found by ``scene.ray_intersect_preliminary`` (the ray tracer only: distance,
+shape, primitive, barycentrics) and the fields the integrator reads -- ``t``, ``p``,
+the geometric normal ``n``, the shading normal ``sh_frame.n``, ``uv``, ``shape``,
+``prim_index`` -- are computed from tables indexed by the shape's registry id:
+
+* meshes: every mesh's faces (offset to the concatenated vertices), positions, vertex
+  normals (smooth meshes) and texture coordinates, concatenated on the host, with each
+  mesh's first face; computed as Mitsuba's meshes do, operation for operation (the
+  point and the interpolated attributes at the ray tracer's barycentrics, the
+  normalized face normal; texture coordinates = the barycentrics on a mesh without
+  any): the same bits;
+* Mitsuba's analytic spheres: centre, radius and world-to-object transform (the point
+  on the ray at the hit distance, the normal from the centre, uv = (phi / 2pi, theta / pi)
+  of the object-space point, as Mitsuba's sphere does; uv may differ from Mitsuba's in
+  the last bits).
+
+Derivatives follow the ray, not the shapes (their parameters are not the renderer's):
+where the ray carries gradients the hit distance is re-intersected differentiably
+(ray-plane on the hit face, ray-sphere) and the barycentrics follow the point, with
+``dr.replace_grad`` keeping the ray tracer's values. The kernels do not depend on the
+number of shapes; the table is rebuilt only when the shapes' buffers change (it keeps
+them, so their Dr.Jit ids cannot be reused meanwhile). A scene with any other kind of
+shape uses ``scene.ray_intersect`` (``supported`` is False; its meshes are still in the
+table, for the lift).
+"""
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+MESH, SMOOTH, TEXCOORDS, SPHERE = 1, 2, 4, 8  # bits of a shape's kind (0: not in the table)
+
+
+def sphere_key(shape):
+    bbox = shape.bbox()
+    return tuple(bbox.min) + tuple(bbox.max)
+
+
+class _Properties(mi.TraversalCallback):
+    """A shape's own properties by name, (value, its C++ type), without recursing into its
+    children: ``mi.traverse`` builds a SceneParameters (hashing the JIT ids of each value
+    read), about 15x slower per shape."""
+
+    def __init__(self):
+        mi.TraversalCallback.__init__(self)
+        self.values = {}
+
+    def put(self, name, value, flags, cpptype=None):
+        self.values[name] = (value, cpptype)
+
+
+def shape_property(shape, name):
+    """``mi.traverse(shape)[name]``, read directly (see _Properties)."""
+    properties = _Properties()
+    shape.traverse(properties)
+    value, cpptype = properties.values[name]
+    return value if cpptype is None else mi.get_property(value, cpptype, shape)
+
+
+def sphere_rows(to_world, uv=True):
+    """What the table keeps of a sphere of to-world transform ``to_world``, host values of
+    its one-lane entries read one by one (no kernel each; about 0.5 us an entry, so only
+    the entries used): (the translation column, the first column of the linear part --
+    its length is the radius --, the columns of Mitsuba's own world-to-object matrix as
+    4 x 3 nested lists or None without ``uv``). The world-to-object matrix is the
+    transpose of ``inverse_transpose``: its column j holds the first three entries of row
+    j of the latter."""
+    m = to_world.matrix
+    rows = m[0], m[1], m[2]
+    center = [row[3][0] for row in rows]
+    axis = [row[0][0] for row in rows]
+    if not uv:
+        return center, axis, None
+    it = to_world.inverse_transpose
+    return center, axis, [[row[i][0] for i in range(3)] for row in (it[j] for j in range(4))]
+
+
+class HitTable:
+    """The geometry of a scene by shape id (see the module docstring): ``update(scene)``
+    before each render, then ``intersect``; the mesh arrays also serve the terminator lift
+    (``lift.py``)."""
+
+    def __init__(self):
+        self.key = None
+        self.uv = False
+        self.supported = False
+
+    # -- the table ---------------------------------------------------------------------------
+    def update(self, scene, uv=True):
+        """The table of ``scene`` (rebuilt only if its shapes changed). ``uv``: whether the
+        hits' texture coordinates are used (a checkerboard or an image texture); without
+        them the spheres' uv are 0 and their world-to-object matrices are not read."""
+        shapes = scene.shapes()
+        ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr()).numpy() if shapes else []
+        key, buffers = [], []
+        for shape_id, shape in zip(ids, shapes):
+            if shape.is_mesh():
+                bufs = (shape.faces_buffer(), shape.vertex_positions_buffer(),
+                        shape.vertex_normals_buffer() if shape.has_vertex_normals() else None,
+                        shape.vertex_texcoords_buffer() if shape.has_vertex_texcoords() else None)
+                buffers.append(bufs)
+                key.append((int(shape_id), "mesh") + tuple(-1 if b is None else b.index for b in bufs))
+            elif shape.class_name() == "Sphere":
+                buffers.append(shape)
+                key.append((int(shape_id), "sphere") + sphere_key(shape))
+            else:  # not in the table: its hits need Mitsuba's dispatch
+                key.append((int(shape_id), "other"))
+                buffers.append(None)
+        if key == self.key and (self.uv or not uv):
+            return self
+        self.key, self.buffers, self.uv = key, buffers, uv  # kept: see the module docstring
+        self.supported = bool(key) and all(k[1] != "other" for k in key)
+        self.build(ids, key, buffers)
+        return self
+
+    def build(self, ids, key, buffers):
+        size = max(int(max(ids, default=0)) + 1, 2)
+        kind = np.zeros(size, np.uint32)
+        first = np.zeros(size, np.uint32)  # first face (meshes) or row (spheres)
+        faces, positions, normals, texcoords = [], [], [], []
+        spheres = []
+        face_count = vertex_count = 0
+        for k, item in zip(key, buffers):
+            shape_id = k[0]
+            if k[1] == "other":
+                continue
+            if k[1] == "sphere":
+                kind[shape_id], first[shape_id] = SPHERE, len(spheres)
+                spheres.append(sphere_rows(shape_property(item, "to_world"), self.uv))
+                continue
+            face_buf, position_buf, normal_buf, texcoord_buf = item
+            mesh_faces = face_buf.numpy().astype(np.int64)
+            mesh_positions = position_buf.numpy()
+            count = len(mesh_positions) // 3
+            kind[shape_id] = MESH | (SMOOTH if normal_buf is not None else 0) \
+                | (TEXCOORDS if texcoord_buf is not None else 0)
+            first[shape_id] = face_count
+            faces.append(mesh_faces + vertex_count)
+            positions.append(mesh_positions)
+            normals.append(normal_buf.numpy() if normal_buf is not None
+                           else np.zeros(3 * count, np.float32))
+            texcoords.append(texcoord_buf.numpy() if texcoord_buf is not None
+                             else np.zeros(2 * count, np.float32))
+            face_count += len(mesh_faces) // 3
+            vertex_count += count
+        self.kind, self.first = mi.UInt32(kind), mi.UInt32(first)
+        # The table's length as data, not as a constant of the kernels (it grows with the scene).
+        self.size = dr.opaque(mi.UInt32, size)
+        self.has_meshes, self.has_spheres = bool(faces), bool(spheres)
+
+        def upload(parts, dtype, empty):
+            return mi.Float(np.concatenate(parts).astype(dtype)) if parts else \
+                dr.zeros(mi.Float, empty)
+
+        self.faces = mi.UInt32(np.concatenate(faces).astype(np.uint32)) if faces else \
+            dr.zeros(mi.UInt32, 3)
+        self.positions = upload(positions, np.float32, 3)
+        self.has_smooth = bool(np.any(kind & SMOOTH))
+        self.has_texcoords = bool(np.any(kind & TEXCOORDS))
+        # (only the attributes some mesh has: flat or untextured scenes keep no zeros)
+        self.normals = upload(normals if self.has_smooth else [], np.float32, 3)
+        self.texcoords = upload(texcoords if self.has_texcoords else [], np.float32, 2)
+        if spheres:
+            center = np.array([c for c, _, _ in spheres], np.float32)
+            axis = np.array([a for _, a, _ in spheres], np.float32)
+            self.center = mi.Point3f(*(mi.Float(np.ascontiguousarray(center[:, i]))
+                                       for i in range(3)))
+            self.radius = mi.Float(np.linalg.norm(axis.astype(np.float64), axis=1)
+                                   .astype(np.float32))
+            # columns of the world-to-object transform (its first three rows), 4 x 3 per sphere
+            self.to_object = mi.Float(np.array([t for _, _, t in spheres], np.float32).ravel()) \
+                if self.uv else None
+
+    # -- the hits ----------------------------------------------------------------------------
+    def intersect(self, scene, ray, coherent=False):
+        """The surface interaction of each ray (``supported`` must be True)."""
+        pi = scene.ray_intersect_preliminary(ray, coherent=coherent)
+        valid = pi.is_valid()
+        shape_id = dr.reinterpret_array(mi.UInt32, pi.shape)
+        valid &= shape_id < self.size
+        kind = dr.gather(mi.UInt32, self.kind, shape_id, valid)
+        row = dr.gather(mi.UInt32, self.first, shape_id, valid)
+        attached = dr.grad_enabled(ray.o, ray.d)
+        si = dr.zeros(mi.SurfaceInteraction3f, dr.width(pi.t))
+        t, p, n, shading_n, uv = pi.t, mi.Point3f(0.0), mi.Normal3f(0.0), mi.Normal3f(0.0), \
+            mi.Point2f(0.0)
+        if self.has_meshes:
+            mesh = valid & ((kind & MESH) != 0)
+            t_m, p_m, n_m, shading_m, uv_m = self.mesh_hit(pi, ray, kind, row, mesh, attached)
+            t = dr.select(mesh, t_m, t)
+            p, n = dr.select(mesh, p_m, p), dr.select(mesh, n_m, n)
+            shading_n, uv = dr.select(mesh, shading_m, shading_n), dr.select(mesh, uv_m, uv)
+        if self.has_spheres:
+            sphere = valid & ((kind & SPHERE) != 0)
+            t_s, p_s, n_s, uv_s = self.sphere_hit(pi, ray, row, sphere, attached)
+            t = dr.select(sphere, t_s, t)
+            p, n = dr.select(sphere, p_s, p), dr.select(sphere, n_s, n)
+            shading_n, uv = dr.select(sphere, n_s, shading_n), dr.select(sphere, uv_s, uv)
+        si.t = dr.select(valid, t, dr.inf)
+        si.p, si.n, si.uv = p, n, uv
+        si.sh_frame = mi.Frame3f(shading_n)
+        si.shape = pi.shape
+        si.prim_index = pi.prim_index
+        si.wi = si.to_local(-ray.d)
+        return si
+
+    def corners(self, row, prim_index, mesh):
+        """(face vertex indices, positions) of each lane's hit face."""
+        face = (row + prim_index) * 3
+        vertex = [dr.gather(mi.UInt32, self.faces, face + k, mesh) for k in range(3)]
+        return vertex, [dr.gather(mi.Point3f, self.positions, v, mesh) for v in vertex]
+
+    def mesh_hit(self, pi, ray, kind, row, mesh, attached):
+        vertex, (p0, p1, p2) = self.corners(row, pi.prim_index, mesh)
+        b1, b2 = pi.prim_uv.x, pi.prim_uv.y
+        e1, e2 = p1 - p0, p2 - p0
+        n = mi.Normal3f(dr.normalize(dr.cross(e1, e2)))
+        t = pi.t
+        if attached:  # the hit follows the ray on the plane of its face
+            t_ray = dr.dot(n, p0 - ray.o) / dr.dot(n, ray.d)
+            rel = ray(t_ray) - p0
+            a11, a12, a22 = dr.dot(e1, e1), dr.dot(e1, e2), dr.dot(e2, e2)
+            r1, r2 = dr.dot(e1, rel), dr.dot(e2, rel)
+            inv = dr.rcp(a11 * a22 - a12 * a12)
+            b1 = dr.replace_grad(b1, (a22 * r1 - a12 * r2) * inv)
+            b2 = dr.replace_grad(b2, (a11 * r2 - a12 * r1) * inv)
+            t = dr.replace_grad(t, t_ray)
+        b0 = 1.0 - b1 - b2
+        p = dr.fma(p0, b0, dr.fma(p1, b1, p2 * b2))
+        shading_n = n
+        if self.has_smooth:
+            smooth = mesh & ((kind & SMOOTH) != 0)
+            n0, n1, n2 = (dr.gather(mi.Vector3f, self.normals, v, smooth) for v in vertex)
+            interpolated = dr.fma(n2, b2, dr.fma(n1, b1, n0 * b0))
+            interpolated *= dr.rsqrt(dr.squared_norm(interpolated))
+            shading_n = dr.select(smooth, mi.Normal3f(interpolated), n)
+        uv = mi.Point2f(b1, b2)
+        if self.has_texcoords:
+            textured = mesh & ((kind & TEXCOORDS) != 0)
+            uv0, uv1, uv2 = (dr.gather(mi.Point2f, self.texcoords, v, textured) for v in vertex)
+            uv = dr.select(textured, dr.fma(uv2, b2, dr.fma(uv1, b1, uv0 * b0)), uv)
+        return t, p, n, shading_n, uv
+
+    def sphere_hit(self, pi, ray, row, sphere, attached):
+        center = dr.gather(mi.Point3f, self.center, row, sphere)
+        t = pi.t
+        if attached:  # the nearer root of |o + t d - c| = r that the ray tracer found
+            radius = dr.gather(mi.Float, self.radius, row, sphere)
+            oc = ray.o - center
+            a, b = dr.squared_norm(ray.d), dr.dot(oc, ray.d)
+            root = dr.safe_sqrt(dr.square(b) - a * (dr.squared_norm(oc) - dr.square(radius)))
+            near, far = (-b - root) / a, (-b + root) / a
+            t = dr.replace_grad(t, dr.select(dr.abs(near - t) <= dr.abs(far - t), near, far))
+        p = ray(t)
+        n = mi.Normal3f(dr.normalize(p - center))
+        if self.to_object is None:  # no uv used (see update)
+            return t, p, n, mi.Point2f(0.0)
+        columns = [dr.gather(mi.Vector3f, self.to_object, row * 4 + i, sphere) for i in range(4)]
+        local = dr.fma(columns[2], p.z, dr.fma(columns[1], p.y, dr.fma(columns[0], p.x,
+                                                                      columns[3])))
+        theta = dr.safe_acos(local.z)
+        phi = dr.atan2(local.y, local.x)
+        phi = dr.select(phi < 0.0, phi + 2.0 * dr.pi, phi)
+        return t, p, n, mi.Point2f(phi * dr.inv_two_pi, theta * dr.inv_pi)

@@ -1,0 +1,306 @@
+"""The ray tree of the Whitted integrator, traced generation by generation.
+
+All rays of one depth are intersected and shaded together; the reflected and
+refracted children of the lanes that need them (weight > 0) are compacted with
+``dr.compress`` into the next generation; the colors are finally summed from the
+deepest generation back to the first with gathers only (no atomics, no randomness).
+
+Conventions, decided here once:
+
+* ``ray.d`` points away from the camera (or the previous hit); V = -ray.d.
+  N is the shading normal flipped to face V; all directions are world space.
+* Entering or leaving an object is decided by the *geometric* normal, which
+  points to the object's outside (closed objects) or front side (planes and
+  triangles): a ray with d . n_geo < 0 enters (eta_i = 1, eta_t = eta),
+  otherwise it leaves (eta_i = eta, eta_t = 1). Media are not nested.
+* On total internal reflection the kt share follows the mirror direction.
+* Depth: the first generation is 0; generations 1 .. ``max_depth`` are bounces;
+  a ray beyond that adds nothing.
+"""
+
+import drjit as dr
+import mitsuba as mi
+
+from raymitsuba.util import no_cyclic_gc
+
+from .hits import HitTable
+from .lift import lifted_point
+from .surfaces import NO_SLOT, SceneTerms, with_kt_derivative
+from ..phong import phong_local
+
+
+def reflect(v, n):
+    """Mirror direction of v (pointing away from the surface) about the unit normal n."""
+    return 2.0 * dr.dot(n, v) * n - v
+
+
+def refract(v, n, eta_ratio):
+    """(Refracted direction, total internal reflection mask) by Snell's law.
+
+    v points away from the surface on the incident side, n is the unit normal on
+    that side (n . v > 0) and ``eta_ratio`` = eta_i / eta_t.
+    """
+    cos_i = dr.dot(n, v)
+    sin2_t = dr.square(eta_ratio) * (1.0 - dr.square(cos_i))
+    tir = sin2_t >= 1.0
+    cos_t = dr.safe_sqrt(1.0 - sin2_t)
+    return -eta_ratio * v + (eta_ratio * cos_i - cos_t) * n, tir
+
+
+class Generation:
+    """One depth of the ray tree, as the trace leaves it.
+
+    Per lane (one lane per ray of this depth): ``local`` (L_local, or the
+    background on a miss), the weights of the reflected and refracted children
+    and, where a child exists (``has_r`` / ``has_t``), its lane in the next
+    generation (``child_r`` / ``child_t``).
+    """
+
+    def __init__(self, local):
+        self.local = local
+        self.weight_r = self.child_r = self.has_r = None
+        self.weight_t = self.child_t = self.has_t = None
+
+    @property
+    def has_children(self):
+        return self.child_r is not None
+
+    def subtree_color(self, deeper):
+        """This generation's colors given the colors of the next one (None: no next one)."""
+        if deeper is None or not self.has_children:
+            return self.local
+        return self.local + self.weight_r * dr.gather(mi.Color3f, deeper, self.child_r, self.has_r) \
+            + self.weight_t * dr.gather(mi.Color3f, deeper, self.child_t, self.has_t)
+
+
+class Step:
+    """What one generation computes for its rays: the local colors and, unless it is
+    the deepest, the children's weights and rays (reflected and refracted, per lane)."""
+
+    def __init__(self, local, hit, weights=None, rays=None):
+        self.local, self.hit = local, hit
+        self.weight_r, self.weight_t = weights if weights else (None, None)
+        self.reflected, self.refracted = rays if rays else (None, None)
+
+
+class TreeTooLarge(Exception):
+    """The ray tree would hold more than ``Tracer.max_rays`` rays (generation ``depth``,
+    of ``lanes`` rays, would take it past)."""
+
+    def __init__(self, depth, lanes):
+        super().__init__(f"generation {depth} of the ray tree has {lanes} rays")
+        self.depth, self.lanes = depth, lanes
+
+
+class Tracer:
+    """Traces the ray tree of a batch of rays (see the module docstring).
+
+    ``max_depth``: bounces after the first generation; ``max_shadow_crossings``: a shadow
+    ray that crosses more transparent surfaces than this is taken as blocked;
+    ``min_weight``: a child whose path weight (the product of the kr / kt weights from
+    the camera ray down to it) is not above this is not traced (0: every child of
+    weight > 0, the exact tree); ``max_rays``: a tree of more rays than this raises
+    :class:`TreeTooLarge` (None: no limit); ``progress``: optional callable(generations_done).
+    """
+
+    def __init__(self, max_depth=5, max_shadow_crossings=16, min_weight=0.0):
+        self.max_depth = max_depth
+        self.max_shadow_crossings = max_shadow_crossings
+        self.min_weight = min_weight
+        self.max_rays = None
+        self.progress = None
+        self.rays_per_generation = []  # of the last trace: how many rays each depth traced
+        self.geometry = HitTable()  # the scene's geometry by shape id, kept across renders
+        self.last_terms = None  # of the last render (see scene_terms)
+
+    def scene_terms(self, scene):
+        """What shading needs from ``scene`` (its SceneTerms, with the geometry table), built
+        once per render and shared by its chunks."""
+        with no_cyclic_gc():  # a Python pass over every shape and surface
+            terms = SceneTerms(scene, self.last_terms)
+            terms.geometry = self.geometry.update(scene, uv=terms.surfaces.uses_uv)
+        self.last_terms = terms  # its surface layout is reused by the next render
+        return terms
+
+    def trace(self, scene, ray, terms=None):
+        """The color of each ray of ``ray`` (one lane per ray) through its whole tree
+        (``terms``: from :meth:`scene_terms`, if already built)."""
+        terms = self.scene_terms(scene) if terms is None else terms
+        path_weight = mi.Float(1.0) if self.min_weight > 0 else None
+        generations = []
+        self.rays_per_generation = []
+        for depth in range(self.max_depth + 1):
+            self.rays_per_generation.append(dr.width(ray))
+            last = depth == self.max_depth
+            step = self.step(scene, terms, ray, depth, not last)
+            generation = Generation(step.local)
+            generations.append(generation)
+            if last:
+                break
+            ray, path_weight = self.spawn(generation, step, path_weight)
+            if self.progress is not None:
+                self.progress(depth + 1)
+            if ray is None:
+                break
+            if self.max_rays is not None and \
+                    sum(self.rays_per_generation) + dr.width(ray) > self.max_rays:
+                raise TreeTooLarge(depth + 1, dr.width(ray))
+
+        color = None
+        for generation in reversed(generations):
+            color = generation.subtree_color(color)
+            dr.eval(color)  # once for all three channels: the next step gathers from each
+        return color
+
+    def step(self, scene, terms, ray, depth, children):
+        """Intersect and shade ``ray``; with ``children``, also the children's weights and rays.
+"""
+        si = self.intersect(scene, terms.geometry, ray, coherent=(depth == 0))
+        hit = si.is_valid()
+        surfaces = terms.surfaces
+        slot = surfaces.slot(si.shape, hit)
+        color = surfaces.base_color(si, slot, hit)
+        local = self.shade(scene, terms, si, slot, color, ray)
+        local = dr.select(hit, local, terms.background)
+        if not children:
+            return Step(local, hit)
+        kr = surfaces.get("reflectivity", slot, hit)
+        kt = surfaces.get("refractivity", slot, hit)
+        eta = surfaces.get("ior", slot, hit)
+        v = -ray.d
+        n = self.facing_normal(si, ray)
+        entering = dr.dot(si.n, ray.d) < 0
+        refracted_d, tir = refract(v, n, dr.select(entering, dr.rcp(eta), eta))
+        weights = (kr + dr.select(tir, kt, 0.0), dr.select(tir, 0.0, kt))
+        rays = (si.spawn_ray(reflect(v, n)), si.spawn_ray(refracted_d))
+        return Step(local, hit, weights, rays)
+
+    def intersect(self, scene, geometry, ray, coherent):
+        """The surface interaction of each ray: by lookup in the geometry table (see
+        _hits.py), or, for a scene with shapes the table does not know, through Mitsuba's
+        dispatch (the shapes' own parameters detached: they are not the renderer's)."""
+        if geometry.supported:
+            return geometry.intersect(scene, ray, coherent)
+        return scene.ray_intersect(ray, ray_flags=mi.RayFlags.AllNonDifferentiable,
+                                   coherent=coherent)
+
+    def facing_normal(self, si, ray):
+        """The shading normal flipped to the side the ray comes from."""
+        n = si.sh_frame.n
+        return dr.select(dr.dot(n, ray.d) > 0, -n, n)
+
+    def shade(self, scene, terms, si, slot, color, ray):
+        """L_local at each hit: ambient term plus each light's shadowed Phong term."""
+        hit = si.is_valid()
+        surfaces, lights = terms.surfaces, terms.direct
+        result = terms.ambient * surfaces.get("ambient_mix", slot, hit) * color
+        if not lights:
+            return result
+        kd = surfaces.get("diffuse_mix", slot, hit)
+        ks = surfaces.get("specular_mix", slot, hit)
+        exponent = surfaces.get("phong_coeff", slot, hit)
+        n, v = self.facing_normal(si, ray), -ray.d
+        lifted = lifted_point(terms.geometry, si, hit)  # see _lift.py
+        for light in lights:
+            wi, dist, intensity = light.illuminate(si.p)
+            active = hit & (dr.dot(n, wi) > 0)
+            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, lifted)
+            phong = phong_local(n, v, wi, color, kd, ks, exponent)
+            result += dr.select(active, intensity * phong * transmittance, 0.0)
+        return result
+
+    def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None):
+        """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
+        ray = si.spawn_ray(wi)
+        if lifted is not None:  # see _lift.py
+            terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
+            ray.o = dr.select(terminator, lifted, ray.o)
+        ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
+        # The walk is detached: the parameters reach the transmittance only through the kt
+        # of the surfaces crossed (*which* surfaces are crossed changes in jumps), and that
+        # derivative is attached in closed form afterwards (see ``with_kt_derivative``),
+        # from the slots of the crossings, recorded only when the kt have gradients.
+        record = dr.grad_enabled(surfaces.refractivity)
+        with dr.suspend_grad():
+            # A cheap any-hit test first: most shadow rays cross nothing, and then the
+            # transmittance is exactly 1. Only the others walk their crossings.
+            blocked = scene.ray_test(ray, active)
+            if not surfaces.any_transparent:
+                return dr.select(blocked, 0.0, 1.0)  # nothing lets light through
+            transmittance, crossed_slots = self.crossings(scene, surfaces, ray, active & blocked,
+                                                          record)
+        return with_kt_derivative(surfaces, transmittance, crossed_slots)
+
+    def crossings(self, scene, surfaces, ray, active, record=False):
+        """(Product of kt over the surfaces ``ray`` crosses, 0 past max_shadow_crossings;
+        with ``record``, the slot of each crossing that let the ray through, in order, as
+        max_shadow_crossings UInt32 (NO_SLOT past the last one), else None)."""
+        limit = self.max_shadow_crossings
+
+        def body(ray, transmittance, crossings, slots, active):
+            # Only the distance and the BSDF of each crossing matter: a preliminary
+            # intersection is enough. The next ray starts just past the crossing.
+            crossing = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
+            crossed = active & crossing.is_valid()
+            slot = surfaces.slot(crossing.shape, crossed)
+            kt = surfaces.get("refractivity", slot, crossed)
+            transmittance = dr.select(crossed, transmittance * kt, transmittance)
+            onward = crossed & (kt > 0)
+            slots = tuple(dr.select(onward & (crossings == k), slot, recorded)
+                          for k, recorded in enumerate(slots))
+            crossings += 1
+            # Past max_shadow_crossings the light counts as blocked.
+            transmittance = dr.select(onward & (crossings >= limit), 0.0, transmittance)
+            p = ray(crossing.t)
+            step = (1.0 + dr.max(dr.abs(p))) * mi.math.RayEpsilon
+            ray = mi.Ray3f(dr.select(onward, p + step * ray.d, ray.o), ray.d,
+                           dr.select(onward, ray.maxt - crossing.t - step, ray.maxt))
+            return ray, transmittance, crossings, slots, onward & (crossings < limit)
+
+        slots = tuple(mi.UInt32(NO_SLOT) for _ in range(limit if record else 0))
+        state = (ray, mi.Float(1.0), mi.UInt32(0), slots, mi.Bool(active))
+        _, transmittance, _, slots, _ = dr.while_loop(state, lambda *s: s[-1], body,
+                                                      label="shadow ray")
+        return transmittance, (slots if record else None)
+
+    def spawn(self, generation, step, path_weight=None):
+        """Record the children of ``generation`` and return their rays (None: no children)
+        and, given the lanes' ``path_weight`` (detached; None: no bailout), the children's.
+
+        A lane has a reflected (refracted) child where its weight is > 0 (and its path
+        weight above ``min_weight``); the children are compacted, reflected ones first,
+        into the next generation's lanes."""
+        weight_r, weight_t = step.weight_r, step.weight_t
+        has_r, has_t = step.hit & (weight_r > 0), step.hit & (weight_t > 0)
+        if path_weight is not None:
+            path_r = path_weight * dr.detach(weight_r)
+            path_t = path_weight * dr.detach(weight_t)
+            has_r, has_t = has_r & (path_r > self.min_weight), has_t & (path_t > self.min_weight)
+            dr.eval(path_r, path_t)
+        dr.eval(generation.local, weight_r, weight_t, has_r, has_t, step.reflected, step.refracted)
+        index_r, index_t = dr.compress(has_r), dr.compress(has_t)
+        count_r, count_t = dr.width(index_r), dr.width(index_t)
+        if count_r + count_t == 0:
+            return None, None
+        generation.weight_r, generation.has_r = weight_r, has_r
+        generation.weight_t, generation.has_t = weight_t, has_t
+        generation.child_r = dr.prefix_sum(mi.UInt32(has_r))  # exclusive: rank among the lanes with a child
+        # The count is data, not a constant of the kernels: it changes from render to render.
+        first_t = dr.opaque(mi.UInt32, count_r)
+        generation.child_t = dr.prefix_sum(mi.UInt32(has_t)) + first_t
+        lane = dr.arange(mi.UInt32, count_r + count_t)
+        is_t = lane >= first_t
+        if count_r == 0 or count_t == 0:  # (a gather from an empty array is an error)
+            parent = index_t if count_r == 0 else index_r
+        else:  # not dr.concat: it would make count_r a constant of the kernel
+            parent = dr.select(is_t, dr.gather(mi.UInt32, index_t, lane - first_t, is_t),
+                               dr.gather(mi.UInt32, index_r, lane, ~is_t))
+        reflected, refracted = step.reflected, step.refracted
+        origin = dr.select(is_t, dr.gather(mi.Point3f, refracted.o, parent),
+                           dr.gather(mi.Point3f, reflected.o, parent))
+        direction = dr.select(is_t, dr.gather(mi.Vector3f, refracted.d, parent),
+                              dr.gather(mi.Vector3f, reflected.d, parent))
+        if path_weight is not None:
+            path_weight = dr.select(is_t, dr.gather(mi.Float, path_t, parent),
+                                    dr.gather(mi.Float, path_r, parent))
+        return mi.Ray3f(origin, direction), path_weight

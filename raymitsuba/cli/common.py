@@ -1,0 +1,54 @@
+"""What the ``raymitsuba`` commands share: their exit statuses and how they print errors.
+
+* 0: done;
+* :data:`EXIT_FAILURE` (1): the work itself failed (LLVM, Mitsuba, writing the output);
+* :data:`EXIT_SCENE_ERROR` (2): the input is wrong -- a scene error, printed as
+  ``FILE:LINE:COLUMN: error: ...`` diagnostics, a bad option or an unreadable input
+  file -- like click's own usage errors. Nothing is written then.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+EXIT_FAILURE = 1
+EXIT_SCENE_ERROR = 2
+
+
+def report(diagnostics) -> None:
+    """Print diagnostics (errors and warnings) to stderr, one ``Diagnostic.format()`` each."""
+    for d in diagnostics:
+        click.echo(d.format(), err=True)
+
+
+def parse_or_exit(path: str, dialect: str = "auto"):
+    """The scene parsed from ``path`` in ``dialect``; on errors, print its diagnostics and
+    exit with :data:`EXIT_SCENE_ERROR`."""
+    from raymitsuba.format import parser
+    from raymitsuba.model import RayError
+
+    try:
+        return parser.parse_file(path, dialect)
+    except RayError as e:
+        report(e.diagnostics)
+        sys.exit(EXIT_SCENE_ERROR)
+
+
+def fail(command: str, message: str, code: int) -> None:
+    """Print ``COMMAND: error: MESSAGE`` to stderr and exit with ``code``."""
+    click.echo(f"{command}: error: {message}", err=True)
+    sys.exit(code)
+
+
+def error_message(exc: BaseException) -> str:
+    """One line for an unexpected exception: the last line of the innermost cause's message.
+
+    Mitsuba and Dr.Jit wrap errors raised inside a render (``drjit.custom(...): error while
+    performing a custom differentiable operation (see above)``); the cause says what failed.
+    """
+    while exc.__cause__ is not None:
+        exc = exc.__cause__
+    text = str(exc).strip()
+    return text.splitlines()[-1] if text else type(exc).__name__

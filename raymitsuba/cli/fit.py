@@ -1,0 +1,194 @@
+"""``raymitsuba fit``: fit material and light parameters of a .RAY scene to a target image.
+
+See :mod:`raymitsuba.fit` for the loss (mean squared error), the optimizer (Adam, step
+sizes relative to each parameter's scale), the valid ranges and the default parameters.
+"""
+
+from __future__ import annotations
+
+import os
+
+import click
+
+from raymitsuba import images
+from raymitsuba.cli import common as cli_common
+from raymitsuba.atomic import atomic_path
+from raymitsuba.cli.common import EXIT_FAILURE, EXIT_SCENE_ERROR, report
+from raymitsuba.cli.options import dialect_option, parse_size
+
+PLOT_FORMATS = (".png", ".pdf", ".svg")
+
+
+def fail(message: str, code: int = EXIT_SCENE_ERROR):
+    """Exit with ``raymitsuba fit: error: MESSAGE`` (by default for bad input: status 2)."""
+    cli_common.fail("raymitsuba fit", message, code)
+
+
+def parse_scene(path: str, dialect: str = "auto"):
+    """The parsed scene and its bytes (exit 2 with FILE:LINE:COL diagnostics on errors)."""
+    model = cli_common.parse_or_exit(path, dialect)
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError as e:
+        fail(f"{path}: cannot read the scene file: {e.strerror or e}")
+    return model, data
+
+
+def show(value) -> str:
+    if isinstance(value, tuple):
+        return "(" + ", ".join(f"{v:.4g}" for v in value) + ")"
+    return f"{value:.4g}"
+
+
+@click.command()
+@click.argument("scene", type=click.Path(dir_okay=False))
+@click.option("--target", required=True, type=click.Path(dir_okay=False),
+              help="The image to match (.exr, .npy, .png, .jpg); its size sets the render size.")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="The fitted scene: SCENE with only the fitted numbers changed.")
+@click.option("--params", "keys", default=None, metavar="KEY,KEY...",
+              help="Parameters to fit, e.g. mat1.color,mat1.diffuse_mix,light1.color "
+                   "(shell patterns such as 'mat1.*' work). Default: every material "
+                   "parameter of the materials used by objects (kr and kt only where they "
+                   "start above 0, ior only where kt does) and every light's color.")
+@click.option("--iters", default=100, show_default=True, type=click.IntRange(0, 1_000_000),
+              help="Adam steps.")
+@click.option("--lr", default=0.02, show_default=True, type=click.FloatRange(0, min_open=True),
+              help="Learning rate, relative to each parameter's scale max(1, |start|).")
+@click.option("--spp", default=1, show_default=True, type=click.IntRange(1, 4096),
+              help="Samples per pixel of the renders (1: the pixel centre).")
+@click.option("--max-depth", default=5, show_default=True, type=click.IntRange(0, 64),
+              help="Bounces after the camera ray.")
+@click.option("--aa", default=None, type=click.FloatRange(0, min_open=True), metavar="THRESHOLD",
+              help="Adaptive anti-aliasing of the renders (see raymitsuba render --help).")
+@click.option("--memory-budget", default="2G", show_default=True, metavar="SIZE",
+              help="Memory a chunk of camera rays may take (e.g. 512M, 4G).")
+@click.option("--truth", default=None, type=click.Path(dir_okay=False),
+              help="The true scene (same structure): also print each parameter's error.")
+@click.option("--plot", default=None, type=click.Path(dir_okay=False),
+              help="Write the loss curve and target / start / fitted images (.png, .pdf, .svg).")
+@click.option("--srgb", is_flag=True,
+              help="Decode an 8-bit target (and textures) from sRGB; show the plot's images in sRGB.")
+@click.option("-q", "--quiet", is_flag=True, help="Print only the final summary.")
+@dialect_option
+def fit(scene, target, output, keys, iters, lr, spp, max_depth, aa, memory_budget, truth, plot,
+        srgb, quiet, dialect):
+    """Fit parameters of the .RAY file SCENE so that its render matches TARGET.
+
+    Minimises the mean squared error over pixels and channels (linear values) with
+    Adam, keeping every parameter in its valid range, and writes the fitted scene to
+    OUTPUT (atomically). Scene errors are reported as FILE:LINE:COLUMN and exit with
+    status 2, like unknown --params keys and unreadable targets.
+    """
+    from raymitsuba import fit as fitting
+
+    if plot is not None and os.path.splitext(plot)[1].lower() not in PLOT_FORMATS:
+        raise click.BadParameter(f"{plot}: use one of {', '.join(PLOT_FORMATS)}",
+                                 param_hint="--plot")
+    budget = parse_size(memory_budget)
+    model, data = parse_scene(scene, dialect)
+    report(model.warnings)
+    try:
+        selected = fitting.select_keys(model, None if keys is None else keys.split(","))
+    except fitting.FitError as e:
+        fail(str(e))
+    if not selected:
+        fail("nothing to fit: the scene has no `material` (or `surface`) line used by an object and no light; "
+             "name parameters with --params")
+    truth_values = None
+    if truth is not None:
+        truth_model, _ = parse_scene(truth, dialect)
+        try:
+            truth_values = fitting.model_values(truth_model, selected)
+        except fitting.FitError as e:
+            fail(f"{truth}: {e}")
+    try:
+        target_image = images.read(target, srgb=srgb)
+    except images.ImageError as e:
+        fail(str(e))
+    import numpy as np
+
+    if not np.all(np.isfinite(target_image)):
+        fail(f"{target}: the image holds non-finite values (nan or inf)")
+    if not os.path.isdir(os.path.dirname(os.path.abspath(output))):
+        fail(f"{output}: the directory does not exist")
+
+    from raymitsuba import api, backend
+    from raymitsuba._llvm import LLVMError
+
+    height, width = target_image.shape[:2]
+
+    def progress(step):
+        if quiet:
+            return
+        line = f"iter {step.iteration:4d}/{iters}  loss {step.loss:.6e}  " + "  ".join(
+            f"{key}={show(value)}" for key, value in step.values.items())
+        if truth_values is not None:
+            errors = fitting.parameter_error(step.values, truth_values)
+            line += f"  |error| max {max(errors.values()):.3g}"
+        click.echo(line)
+
+    try:
+        backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
+        loaded = api.load(model, width=width, height=height, spp=spp, max_depth=max_depth,
+                          srgb=srgb, aa=aa, memory_budget=budget)
+        result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, spp=spp,
+                             callback=progress)
+        fitted_text = fitting.rewrite_scene(data, model, result.fitted)
+        if plot is not None:
+            write_plot(plot, target_image, result, srgb)
+        fitting.write_scene(output, fitted_text)
+    except fitting.FitError as e:
+        fail(str(e), EXIT_FAILURE)
+    except LLVMError as e:
+        fail(str(e), EXIT_FAILURE)
+    except KeyboardInterrupt:
+        fail("interrupted; no output written", 130)
+    except OSError as e:
+        fail(f"cannot write the output: {e}", EXIT_FAILURE)
+    except Exception as e:  # Mitsuba's own errors (e.g. a texture it cannot decode)
+        fail(f"{scene}: {cli_common.error_message(e)}", EXIT_FAILURE)
+
+    click.echo(f"fitted {len(selected)} parameter(s) in {result.iterations} iterations, "
+               f"{result.seconds:.1f} s: loss {result.losses[0]:.6e} -> {result.final_loss:.6e}")
+    for key in selected:
+        line = f"  {key}: {show(result.start[key])} -> {show(result.fitted[key])}"
+        if truth_values is not None:
+            error = fitting.parameter_error({key: result.fitted[key]}, truth_values)[key]
+            line += f"  (true {show(truth_values[key])}, |error| {error:.3g})"
+        click.echo(line)
+    click.echo(f"wrote {output}" + (f" and {plot}" if plot else ""))
+
+
+def write_plot(path: str, target, result, srgb: bool) -> None:
+    """Loss curve (log scale) and the target / start / fitted images side by side, atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    def display(image):
+        image = np.asarray(image, dtype=np.float64)
+        return images.srgb_encode(image) if srgb else np.clip(image, 0.0, 1.0)
+
+    fig, axes = plt.subplots(1, 4, figsize=(16, 4), gridspec_kw={"width_ratios": [1.4, 1, 1, 1]})
+    losses = result.losses
+    axes[0].semilogy(range(len(losses)), np.maximum(losses, 1e-30))
+    axes[0].set_xlabel("iteration")
+    axes[0].set_ylabel("MSE loss")
+    axes[0].set_title("loss")
+    axes[0].grid(True, which="both", alpha=0.3)
+    for ax, image, title in zip(axes[1:], (target, result.start_image, result.fitted_image),
+                                ("target", "start", "fitted")):
+        ax.imshow(display(image), interpolation="nearest")
+        ax.set_title(title)
+        ax.set_axis_off()
+    fig.tight_layout()
+    ext = os.path.splitext(path)[1].lower()
+    try:
+        with atomic_path(path, ext) as tmp:
+            fig.savefig(tmp, dpi=100, format=ext[1:])
+    finally:
+        plt.close(fig)

@@ -1,0 +1,23 @@
+"""Small helpers that every stage may use and that belong to none (no Mitsuba, no .RAY)."""
+
+from __future__ import annotations
+
+import contextlib
+import gc
+
+
+@contextlib.contextmanager
+def no_cyclic_gc():
+    """Pause the cyclic garbage collector while a parse (or a load: api.load, the
+    integrator's scene tables) builds its (acyclic) objects.
+
+    A large scene allocates millions of tuples; each allocation burst would
+    otherwise trigger collections that re-scan everything built so far.
+    """
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()

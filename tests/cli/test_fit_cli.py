@@ -1,0 +1,133 @@
+"""Tests of ``raymitsuba fit`` (raymitsuba/cli/fit.py): a fit from files that changes only the
+fitted numbers, the default parameters, and bad input that exits 2 without a traceback."""
+
+from __future__ import annotations
+
+import os
+import re
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from raymitsuba.cli.fit import fit as fit_command
+from raymitsuba.format.parser import parse_text
+from test_fit import TRUE, render  # the fit tests' scene (diffuse mix 0.7) and renderer
+
+
+def run(*args):
+    return CliRunner().invoke(fit_command, [str(a) for a in args])
+
+
+@pytest.fixture
+def files(tmp_path, mitsuba):
+    """start.ray (TRUE with kd perturbed, CRLF line ends, a tab, comments), true.ray,
+    target.exr (TRUE rendered at 24x24)."""
+    from raymitsuba import images
+
+    true = tmp_path / "true.ray"
+    true.write_text(TRUE)
+    start = tmp_path / "start.ray"
+    start.write_bytes(b"eye 0.1 0.05 5\r\n"
+                      b"fov 35   # degrees\r\n"
+                      b"light 0.9 0.85 0.8 point 1.5 1 6\r\n"
+                      b"light 0.3 0.3 0.3 ambient\r\n"
+                      b"material 0.8 0.45 0.3 0.4\t0.40 0.5 12 0 0 1 # kd is off\r\n"
+                      b"sphere\r\n")
+    target = tmp_path / "target.exr"
+    images.write(str(target), render(TRUE))
+    return tmp_path, start, true, target
+
+
+class TestCommand:
+    def test_fits_and_writes_only_the_fitted_number(self, files):
+        tmp, start, true, target = files
+        out, plot = tmp / "fitted.ray", tmp / "curve.png"
+        result = run(start, "--target", target, "--params", "mat1.diffuse_mix", "--iters", 60,
+                     "--lr", 0.05, "-o", out, "--truth", true, "--plot", plot)
+        assert result.exit_code == 0, result.output + result.stderr
+        assert "iter   60/60" in result.stdout and "|error| max" in result.stdout
+        assert "mat1.diffuse_mix: 0.4 ->" in result.stdout
+        before, after = start.read_bytes(), out.read_bytes()
+        # Exactly one token differs: the diffuse mix `0.40` of the material line.
+        prefix, suffix = before.split(b"\t0.40 ", 1)
+        assert after.startswith(prefix + b"\t") and after.endswith(b" " + suffix)
+        token = after[len(prefix) + 1:len(after) - len(suffix) - 1]
+        assert re.fullmatch(rb"[0-9.]+", token)
+        assert float(token) == pytest.approx(0.7, abs=5e-3)
+        assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    def test_default_parameters_and_quiet(self, files):
+        tmp, start, true, target = files
+        out = tmp / "fitted.ray"
+        result = run(start, "--target", target, "--iters", 2, "-o", out, "-q")
+        assert result.exit_code == 0, result.output + result.stderr
+        assert "iter " not in result.stdout
+        assert "mat1.color" in result.stdout and "light2.color" in result.stdout
+        assert parse_text(out.read_bytes()).objects  # a valid scene
+
+    @pytest.mark.parametrize("problem", ["scene", "params", "mat0", "target", "no-target",
+                                         "truth", "plot", "nan-target"])
+    def test_bad_input_exits_2_without_traceback_or_output(self, files, problem):
+        tmp, start, true, target = files
+        out = tmp / "fitted.ray"
+        args = [start, "--target", target, "-o", out, "--iters", 1]
+        if problem == "scene":
+            bad = tmp / "bad.ray"
+            bad.write_text("eye 0 0 5\nmaterial 1 1 1\n")
+            args[0] = bad
+            expect = f"{bad}:2:"
+        elif problem == "params":
+            args += ["--params", "mat1.diffuse,light1.color"]
+            expect = "unknown parameter `mat1.diffuse`; valid keys: mat1.color, mat1.ambient_mix"
+        elif problem == "mat0":
+            args += ["--params", "mat0.color"]
+            expect = "default material"
+        elif problem == "target":
+            junk = tmp / "junk.png"
+            junk.write_bytes(b"not an image")
+            args[2] = junk
+            expect = "cannot read image"
+        elif problem == "no-target":
+            args[2] = tmp / "missing.exr"
+            expect = "cannot read image"
+        elif problem == "truth":
+            other = tmp / "other.ray"
+            other.write_text("light 1 1 1 ambient\nsphere\n")  # no material 1
+            args += ["--truth", other]
+            expect = "no material 1"
+        elif problem == "plot":
+            args += ["--plot", tmp / "curve.txt"]
+            expect = "--plot"
+        else:
+            bad = tmp / "nan.npy"
+            image = np.zeros((4, 4, 3), np.float32)
+            image[1, 1, 1] = np.nan
+            np.save(bad, image)
+            args[2] = bad
+            expect = "non-finite"
+        result = run(*args)
+        assert result.exit_code == 2, (result.stdout, result.stderr)
+        assert expect in result.stderr
+        assert "Traceback" not in result.stdout + result.stderr
+        assert not isinstance(result.exception, Exception) or isinstance(result.exception, SystemExit)
+        assert not out.exists()
+        assert not any(name.startswith(".raymitsuba-") for name in os.listdir(tmp))
+
+
+def test_antialiasing_and_a_memory_budget_pass_through(files, monkeypatch):
+    from raymitsuba import api
+
+    seen = {}
+    load = api.load
+
+    def spy(*args, **kwargs):
+        seen.update(kwargs)
+        return load(*args, **kwargs)
+
+    monkeypatch.setattr(api, "load", spy)
+    tmp, start, _, target = files
+    result = run(start, "--target", target, "--params", "mat1.diffuse_mix", "--iters", 3,
+                 "--aa", 0.05, "--memory-budget", "64M", "-o", tmp / "fitted.ray", "-q")
+    assert result.exit_code == 0, result.output + result.stderr
+    assert seen["aa"] == 0.05 and seen["memory_budget"] == 64 << 20

@@ -1,0 +1,189 @@
+"""Rendering in chunks (plugins/whitted/chunks.py, driven by plugins/whitted/integrator.py): the image does not
+depend on how the camera rays are split, bit for bit; the tree's size is bounded (a chunk
+too large is traced again in halves); gradients under chunking match finite differences."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import test_gradients as tg
+from support import load_ray
+
+GLASS = "scenes/benchmark_glass.ray"
+WHITTED = "scenes/whitted.ray"
+
+
+@pytest.fixture(scope="module")
+def mi():
+    from raymitsuba.backend import mitsuba
+
+    return mitsuba()
+
+
+def unchunked(loaded):
+    """Today's render: the whole image as one wavefront."""
+    import drjit as dr
+
+    with dr.suspend_grad():
+        return loaded.integrator.render_image(loaded.scene).numpy()
+
+
+def chunked(loaded, pixels=None, budget=None):
+    integrator = loaded.integrator
+    integrator.chunk_pixels = pixels
+    if budget is not None:
+        integrator.memory_budget = budget
+    return integrator.render_array(loaded.scene)
+
+
+@pytest.mark.parametrize("scene,spp", [(WHITTED, 1), (GLASS, 4), (GLASS, 3)])
+def test_chunked_and_unchunked_renders_are_bit_identical(mi, scene, spp):
+    import raymitsuba
+
+    # 29 x 17: chunks of 1, 7, 29 (a row), 40 (across rows) and 100 pixels, and by budget
+    loaded = raymitsuba.load(scene, width=29, height=17, spp=spp)
+    want = unchunked(loaded)
+    for pixels in (1, 7, 29, 40, 100, None):
+        image = chunked(loaded, pixels)
+        assert np.array_equal(image, want), pixels
+        assert loaded.integrator.chunks == (-(-29 * 17 // pixels) if pixels else 1)
+    # what mi.render (the API) returns is the same image
+    assert np.array_equal(np.array(raymitsuba.render(loaded)), want)
+
+
+def test_a_tree_larger_than_the_budget_is_traced_again_in_halves(mi, monkeypatch):
+    import raymitsuba
+    from raymitsuba.plugins.whitted import chunks
+
+    monkeypatch.setattr(chunks, "MIN_CHUNK_RAYS", 1)
+    loaded = raymitsuba.load(GLASS, width=32, height=24, spp=1, max_depth=8)
+    want = unchunked(loaded)
+    integrator = loaded.integrator
+    sensor = loaded.scene.sensors()[0]
+    # 600 rays at most: the first chunk, sized for 1 ray per camera ray, is too large
+    chunker = chunks.Chunker(integrator.tracer, loaded.scene, sensor, 600 * chunks.BYTES_PER_RAY,
+                              rays_per_camera_ray=1.0)
+    image = np.empty((32 * 24, 3), np.float32)
+    largest = []
+
+    def visit(start, count, color):
+        import drjit as dr
+
+        largest.append(sum(integrator.tracer.rays_per_generation))
+        image[start:start + count] = dr.ravel(chunks.pixel_means(color, count, 1)).numpy().reshape(-1, 3)
+
+    chunker.run(chunks.Job(32, 24, 1), visit)
+    assert max(largest) <= 600 and chunker.chunks_done > 32 * 24 * 2 / 600
+    assert np.array_equal(image.reshape(24, 32, 3), want)
+
+
+def test_a_pixel_whose_tree_exceeds_the_budget_is_refused(mi, monkeypatch):
+    import raymitsuba
+    from raymitsuba.plugins.whitted import chunks
+
+    monkeypatch.setattr(chunks, "MIN_CHUNK_RAYS", 1)
+    loaded = raymitsuba.load(GLASS, width=16, height=12, max_depth=30, time_limit=0,
+                             memory_budget=20 * chunks.BYTES_PER_RAY)
+    with pytest.raises(chunks.BudgetError, match="ray tree of (one|a) pixel.*--bailout"):
+        loaded.integrator.render_array(loaded.scene)
+
+
+def test_renders_are_deterministic(mi):
+    import raymitsuba
+
+    loaded = raymitsuba.load(GLASS, width=24, height=16, spp=4)
+    first = chunked(loaded, 9)
+    assert np.array_equal(chunked(loaded, 9), first)
+    assert np.array_equal(chunked(loaded, 50), first)
+
+
+def test_the_probe_estimates_the_rays_per_camera_ray(mi):
+    import raymitsuba
+
+    loaded = raymitsuba.load(GLASS, width=64, height=48)
+    integrator = loaded.integrator
+    integrator.render_image(loaded.scene)
+    actual = sum(integrator.rays_per_generation) / (64 * 48)
+    integrator.render_array(loaded.scene)
+    estimate = integrator.estimated_rays / (64 * 48)
+    assert 0.7 * actual < estimate < 1.3 * actual
+
+
+def test_the_probe_extrapolates_a_tree_too_large_to_trace(mi, monkeypatch):
+    from raymitsuba.plugins.whitted import chunks
+    import raymitsuba
+
+    # 1.2x more rays per generation: about 6e5 rays per pixel, 2e9 for the image
+    monkeypatch.setattr(chunks, "PROBE_RAYS", 20000)
+    loaded = raymitsuba.load(GLASS, width=64, height=48, max_depth=64, time_limit=60)
+    with pytest.raises(chunks.BudgetError, match="about .* rays, an estimated .* min .*--bailout"):
+        loaded.integrator.render_array(loaded.scene)
+    assert 3e8 < loaded.integrator.estimated_rays < 3e10
+    loaded = raymitsuba.load(GLASS, width=64, height=48, max_depth=64, time_limit=0,
+                             memory_budget=1 << 24)
+    with pytest.raises(chunks.BudgetError, match="the ray tree of a pixel needs"):
+        loaded.integrator.render_array(loaded.scene)
+
+
+def test_a_bailout_prunes_light_paths_and_leaves_heavy_ones(mi):
+    # kr 0.1 kt 0.85 glass: a bailout of 0.05 drops every reflection's subtree beyond the
+    # first bounce... and changes the image only by what those paths carried
+    import raymitsuba
+
+    exact = raymitsuba.load(GLASS, width=32, height=24, max_depth=6)
+    pruned = raymitsuba.load(GLASS, width=32, height=24, max_depth=6, bailout=0.05)
+    a, b = chunked(exact), chunked(pruned)
+    assert pruned.integrator.estimated_rays < 0.8 * exact.integrator.estimated_rays
+    assert np.abs(a - b).max() < 0.1 and not np.array_equal(a, b)
+    # a zero bailout is the exact tree
+    assert np.array_equal(chunked(raymitsuba.load(GLASS, width=32, height=24, max_depth=6,
+                                                  bailout=0)), a)
+
+
+@pytest.mark.parametrize("scene,key", [("glass", "mat2.ior"), ("phong", "mat1.color"),
+                                       ("shadow", "mat2.refractivity"),
+                                       ("spot", "light1.direction")])
+def test_gradients_under_chunking_match_finite_differences(mi, scene, key):
+    loaded = tg.load(scene)
+    loaded.integrator.chunk_pixels = 7  # 7 pixels a chunk: rows split, many chunks
+    finite, reverse, forward = tg.derivatives(mi, loaded, key, tg.seed_of(scene, key, "chunks"))
+    assert abs(finite) > 0.1
+    assert abs(reverse - finite) <= tg.REL_FD * abs(finite), (finite, reverse)
+    assert abs(forward - finite) <= tg.REL_FD * abs(finite), (finite, forward)
+    assert abs(reverse - forward) <= tg.REL_AD * abs(forward), (reverse, forward)
+
+
+def test_gradients_do_not_depend_on_the_chunks(mi):
+    import drjit as dr
+    import raymitsuba
+
+    grads = []
+    for pixels in (None, 5, 33):
+        loaded = tg.load("glass", size=12, spp=4)
+        loaded.integrator.chunk_pixels = pixels
+        params = loaded.params
+        dr.enable_grad(params["mat2.ior"])
+        params.update()
+        dr.backward(dr.sum(raymitsuba.render(loaded), axis=None))
+        grads.append(float(dr.grad(params["mat2.ior"])[0]))
+    assert grads[1] == pytest.approx(grads[0], rel=1e-5)
+    assert grads[2] == pytest.approx(grads[0], rel=1e-5)
+
+
+def test_the_output_buffer_guard(mi, monkeypatch):
+    import raymitsuba
+    from raymitsuba.plugins.whitted import chunks, integrator
+
+    loaded = load_ray("sphere\n", 64, 64)
+    monkeypatch.setattr(integrator, "available_memory", lambda: 40_000)
+    with pytest.raises(chunks.BudgetError, match="64 x 64 float image needs"):
+        loaded.integrator.render_array(loaded.scene)
+    # chunk by chunk into the caller's buffer: nothing to assemble, nothing refused
+    stored = []
+    assert loaded.integrator.render_array(loaded.scene,
+                                          store=lambda first, v: stored.append(len(v))) is None
+    assert sum(stored) == 64 * 64
+    with pytest.raises(chunks.BudgetError, match="2\\^32"):
+        loaded.integrator.check(65536, 32768, 1)
+    del raymitsuba

@@ -1,0 +1,212 @@
+"""The geometry table (plugins/whitted/hits.py): surface interactions by lookup, against Mitsuba's
+own ``scene.ray_intersect`` on the same rays -- the same bits on meshes, the same up to
+float rounding of uv on analytic spheres -- and the same derivatives along the ray."""
+
+import numpy as np
+import pytest
+
+from support import load_ray
+
+SCENE = """\
+eye 0.3 1.2 6
+lookat 0 0.3 0
+light 1 1 1 point 2 4 5
+material 0.8 0.3 0.2 0.2 0.7 0.3 20 0 0 1
+translate -1.4 0.5 0
+sphere
+pop
+scale 0.6 0.9 0.6
+translate 0 0.6 0
+sphere
+pop
+pop
+translate 1.4 0 0
+cylinder
+pop
+checkerboard 1
+translate 0 -0.5 0
+plane
+pop
+checkerboard -1
+triangle -3 0 -2  3 0 -2  0 3 -2
+"""
+
+
+@pytest.fixture(scope="module")
+def hits(mitsuba):
+    """(scene, rays through every pixel, Mitsuba's interactions, the table's interactions)."""
+    from raymitsuba.plugins.whitted.camera import camera_rays
+    from raymitsuba.plugins.whitted.hits import HitTable
+
+    mi = mitsuba
+    scene = load_ray(SCENE, 48, 36).scene
+    table = HitTable().update(scene)
+    assert table.supported
+    ray = camera_rays(scene.sensors()[0], 48, 36, 1)
+    want = scene.ray_intersect(ray, ray_flags=mi.RayFlags.AllNonDifferentiable, coherent=True)
+    return scene, table, ray, want, table.intersect(scene, ray, True)
+
+
+def fields(si):
+    return {"t": si.t, "p": si.p, "n": si.n, "sh_n": si.sh_frame.n, "uv": si.uv}
+
+
+def test_the_scene_has_every_kind_of_shape(hits):
+    scene, *_ = hits
+    shapes = scene.shapes()
+    assert any(shape.class_name() == "Sphere" for shape in shapes)
+    assert any(shape.is_mesh() and shape.has_vertex_normals() for shape in shapes)  # smooth
+    assert any(shape.is_mesh() and not shape.has_vertex_normals() for shape in shapes)  # flat
+
+
+def test_same_hits_as_mitsuba(mitsuba, hits):
+    import drjit as dr
+
+    _, _, _, want, got = hits
+    valid = np.array(want.is_valid())
+    assert np.array_equal(valid, np.array(got.is_valid())) and valid.sum() > 500
+    assert np.array_equal(np.array(dr.reinterpret_array(mitsuba.UInt32, want.shape)),
+                          np.array(dr.reinterpret_array(mitsuba.UInt32, got.shape)))
+    assert np.array_equal(np.array(want.prim_index)[valid], np.array(got.prim_index)[valid])
+
+
+def test_mesh_fields_are_mitsubas_bits_and_sphere_uv_close(mitsuba, hits):
+    import drjit as dr
+
+    scene, _, _, want, got = hits
+    valid = np.array(want.is_valid())
+    spheres = {dr.reinterpret_array(mitsuba.UInt32, mitsuba.ShapePtr(s))[0]
+               for s in scene.shapes() if s.class_name() == "Sphere"}
+    on_sphere = np.isin(np.array(dr.reinterpret_array(mitsuba.UInt32, want.shape)), list(spheres))
+    assert on_sphere[valid].sum() > 50 and (~on_sphere[valid]).sum() > 300
+    for name, value in fields(want).items():
+        a = np.array(value).reshape(-1, valid.size)[:, valid]
+        b = np.array(fields(got)[name]).reshape(-1, valid.size)[:, valid]
+        if name == "uv":
+            assert np.array_equal(a[:, ~on_sphere[valid]], b[:, ~on_sphere[valid]])
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-5)
+        else:
+            assert np.array_equal(a, b), name
+
+
+def test_derivatives_follow_the_ray_as_mitsubas(mitsuba, hits):
+    # d(t, p, uv)/d(ray direction) in forward mode, both ways.
+    import drjit as dr
+
+    mi = mitsuba
+    scene, table, ray, _, _ = hits
+    theta = mi.Float(0.0)
+    dr.enable_grad(theta)
+    moved = mi.Ray3f(ray.o, dr.normalize(ray.d + mi.Vector3f(theta, 0.5 * theta, 0.0)))
+    want = scene.ray_intersect(moved, ray_flags=mi.RayFlags.AllNonDifferentiable, coherent=False)
+    got = table.intersect(scene, moved)
+    outputs = [want.t, want.p, got.t, got.p]
+    dr.set_grad(theta, 1.0)
+    dr.forward_to(*outputs)
+    grads = [np.array(dr.grad(o)) for o in outputs]
+    valid = np.array(want.is_valid())
+    for a, b in ((grads[0], grads[2]), (grads[1], grads[3])):
+        a = a.reshape(-1, valid.size)[:, valid]
+        b = b.reshape(-1, valid.size)[:, valid]
+        assert np.abs(a).max() > 0.1
+        np.testing.assert_allclose(b, a, rtol=1e-2, atol=1e-3)  # float32; grazing hits
+
+
+def test_a_shape_outside_the_table_falls_back_to_mitsuba(mitsuba):
+    # Mitsuba's analytic disk: not in the table; the render still shades it.
+    from raymitsuba.plugins.whitted.hits import HitTable
+
+    mi = mitsuba
+    loaded = load_ray("light 1 1 1 point 0 0 5\nsphere\n", 8, 8)
+    scene_dict = dict(loaded.scene_dict)
+    scene_dict["extra"] = {"type": "disk", "bsdf": {"type": "ref", "id": "mat0"},
+                           "to_world": mi.ScalarTransform4f().translate([0, 0, -3])}
+    scene = mi.load_dict(scene_dict)
+    assert not HitTable().update(scene).supported
+    image = np.array(mi.render(scene))
+    assert image.shape == (8, 8, 3) and image.max() > 0
+
+
+def test_sphere_rows_are_read_as_mi_traverse_reads_them(mitsuba):
+    # The table reads each sphere's transform directly (shape_property, sphere_rows), not
+    # through mi.traverse and dr.slice of the whole matrices: the same values, bit for bit.
+    import drjit as dr
+
+    from raymitsuba.plugins.whitted.hits import HitTable, shape_property, sphere_rows
+
+    mi = mitsuba
+    text = "light 1 1 1 point 0 0 5\n" + "".join(
+        f"rotateZ {17 * k}\nrotateX {29 * k}\nscale {0.2 + 0.1 * k} {0.2 + 0.1 * k} "
+        f"{0.2 + 0.1 * k}\ntranslate {k - 2} {0.5 * k} {-k}\nsphere\npop\npop\npop\npop\n"
+        for k in range(5))
+    scene = load_ray(text, 8, 8).scene
+    spheres = [s for s in scene.shapes() if s.class_name() == "Sphere"]
+    assert len(spheres) == 5
+    table = HitTable().update(scene)
+    first = np.array(table.first)
+    for shape in spheres:
+        row = first[dr.reinterpret_array(mi.UInt32, mi.ShapePtr(shape))[0]]
+        to_world = mi.traverse(shape)["to_world"]
+        assert shape_property(shape, "to_world") == to_world
+        matrix = np.array(dr.slice(to_world.matrix, 0), np.float32)
+        inverse = np.array(dr.slice(to_world.inverse_transpose, 0), np.float32).T
+        center, axis, to_object = (np.array(v, np.float32) for v in sphere_rows(to_world))
+        assert np.array_equal(center, matrix[:3, 3]) and np.array_equal(axis, matrix[:3, 0])
+        assert np.array_equal(to_object, inverse[:3, :].T)
+        assert sphere_rows(to_world, uv=False)[2] is None
+        # and the table's row of this sphere holds them
+        assert np.array_equal(np.array([np.array(c)[row] for c in table.center]), center)
+        np.testing.assert_array_equal(np.array(table.radius)[row],
+                                      np.float32(np.linalg.norm(axis.astype(np.float64))))
+        assert np.array_equal(np.array(table.to_object).reshape(-1, 4, 3)[row], to_object)
+
+
+def test_a_table_without_uv_has_the_same_hits_and_zero_sphere_uv(mitsuba, hits):
+    # update(scene, uv=False) (no checkerboard, no image texture) skips the spheres'
+    # world-to-object matrices: the same t, p, n; sphere uv 0; meshes' uv unchanged.
+    import drjit as dr
+
+    from raymitsuba.plugins.whitted.hits import HitTable
+
+    scene, table, ray, _, with_uv = hits
+    plain = HitTable().update(scene, uv=False)
+    assert plain.to_object is None and not plain.uv
+    got = plain.intersect(scene, ray, True)
+    valid = np.array(with_uv.is_valid())
+    a, b = fields(with_uv), fields(got)
+    for name in ("t", "p", "n", "sh_n"):
+        assert np.array_equal(np.array(a[name]), np.array(b[name])), name
+    spheres = {dr.reinterpret_array(mitsuba.UInt32, mitsuba.ShapePtr(s))[0]
+               for s in scene.shapes() if s.class_name() == "Sphere"}
+    on_sphere = np.isin(np.array(dr.reinterpret_array(mitsuba.UInt32, got.shape)), list(spheres))
+    uv, uv_with = np.array(b["uv"]), np.array(a["uv"])
+    assert np.all(uv[:, valid & on_sphere] == 0)
+    assert np.array_equal(uv[:, valid & ~on_sphere], uv_with[:, valid & ~on_sphere])
+    # asked for uv later, the same table rebuilds with them; asked without, it keeps them
+    assert plain.update(scene, uv=True).to_object is not None and plain.uv
+    assert table.update(scene, uv=False).to_object is not None
+
+
+def test_the_integrator_reads_sphere_uv_only_for_textures(mitsuba, tmp_path):
+    # The geometry table skips the spheres' uv unless a surface has a checkerboard or an
+    # image texture; a textured sphere still gets its texture's two halves.
+    from PIL import Image
+
+    import raymitsuba
+
+    plain = raymitsuba.load("eye 0 0 5\nlight 1 1 1 point 0 0 5\nsphere\n", width=24, height=24)
+    tracer = plain.integrator.tracer
+    assert not tracer.scene_terms(plain.scene).geometry.uv
+    texture = np.zeros((2, 2, 3), np.uint8)
+    texture[:, 0] = (255, 0, 0)  # u < 1/2: red; u >= 1/2: green
+    texture[:, 1] = (0, 255, 0)
+    Image.fromarray(texture).save(tmp_path / "halves.png")
+    path = tmp_path / "textured.ray"
+    path.write_text("eye 0 0 5\nlight 1 1 1 point 0 0 5\ntexture halves.png\nrotateX 90\n"
+                    "sphere\n")
+    textured = raymitsuba.load(str(path), width=24, height=24)
+    assert textured.integrator.tracer.scene_terms(textured.scene).geometry.uv
+    image = textured.integrator.render_array(textured.scene)
+    red = image[..., 0] > image[..., 1] + 0.05
+    green = image[..., 1] > image[..., 0] + 0.05
+    assert red.sum() > 20 and green.sum() > 20
