@@ -37,7 +37,7 @@ class Loaded:
     @property
     def params(self):
         """``mi.traverse(scene)`` (mi.SceneParameters), made at the first use and kept: a
-        plain render does not need it (0.3 s at 10^4 objects)."""
+        plain render does not need it, and it visits every object of the scene."""
         if self._params is None:
             from raymitsuba.backend import mitsuba
 
@@ -57,21 +57,14 @@ def parse_any(source, dialect: str = "auto") -> Scene:
     return parser.parse(source, dialect)
 
 
-def load(source, width=None, height=None, spp=1, max_depth=5, srgb=False, dialect="auto",
+def load(source, width=None, height=None, spp=None, max_depth=None, srgb=None, dialect="auto",
          aa=None, memory_budget=None, bailout=None, time_limit=None) -> Loaded:
     """Parse (a path, .RAY text or a Scene, in ``dialect``) and load it into Mitsuba.
 
-    ``width`` and ``height`` (None: the MIT 6.837 ``viewport``, else 512) set the image size.
-
-    Rendering options of the ``raywhitted`` integrator (None: its default):
-
-    * ``aa``: adaptive anti-aliasing threshold (linear value, e.g. 0.02; None or 0: off,
-      every pixel gets the ``spp`` samples, one sample being the pixel centre);
-    * ``memory_budget``: bytes a chunk of camera rays may take (default 2 GiB);
-    * ``bailout``: a ray whose path weight (product of kr / kt from the camera) is not
-      above this is not traced (default 0: the exact tree);
-    * ``time_limit``: seconds of estimated render time beyond which a render is refused
-      (default 3600; 0: no limit).
+    The other keywords are render options: :class:`raymitsuba.options.RenderOptions` states
+    each one's default (taken where a keyword is None), range and meaning; a value out of
+    its range raises :class:`~raymitsuba.options.OptionError`. A size left out is the MIT
+    6.837 ``viewport``'s, else 512.
     """
     from raymitsuba.backend import mitsuba
     from raymitsuba.util import no_cyclic_gc
@@ -79,19 +72,15 @@ def load(source, width=None, height=None, spp=1, max_depth=5, srgb=False, dialec
     model = parse_any(source, dialect)
     mi = mitsuba()
     width, height = model.image_size(width, height)
-    options = Options(width=width, height=height, spp=int(spp),
-                      max_depth=int(max_depth), srgb=bool(srgb))
-    with no_cyclic_gc():  # objects by the 10^4: collections would re-scan them (0.07 s)
+    options = Options.given(width=width, height=height, spp=spp, max_depth=max_depth, srgb=srgb,
+                            aa=aa, memory_budget=memory_budget, bailout=bailout,
+                            time_limit=time_limit)
+    with no_cyclic_gc():  # objects by the 10^4: collections would re-scan them
         scene_dict = translate(model, options)
-        for key, value in (("aa", aa), ("memory_budget", memory_budget),
-                           ("bailout", bailout), ("time_limit", time_limit)):
-            if value is not None:
-                scene_dict["integrator"][key] = float(value)
         # Serially: a mesh plugin's constructor waits on Dr.Jit (params.update() evaluates),
         # and a thread waiting in Mitsuba's parallel loader runs the next pending constructor
         # inside that wait, so 1,000 meshes nested 1,000 constructors deep (RecursionError).
-        # (Parallel is also slower with the Python plugins: 1.45 s against 0.85 s for 10^4
-        # spheres and 10^4 rayphong.)
+        # (Parallel is also slower with the Python plugins.)
         scene = mi.load_dict(scene_dict, parallel=False)
     return Loaded(model, options, scene_dict, scene)
 
@@ -111,7 +100,7 @@ def render(loaded: Loaded, spp: int | None = None, params=None):
 
     if params is None:
         params = loaded.params
-        # mi.render walks every parameter it is given (10 per material) at each call; with
+        # mi.render walks every parameter it is given (8 per material) at each call; with
         # none that has gradients enabled there is nothing to attach: a primal render.
         if not any(dr.grad_enabled(params[key]) for key in params.keys()):
             params = None

@@ -47,6 +47,12 @@ from typing import Optional, Tuple
 Vec3 = Tuple[float, float, float]
 Matrix4 = Tuple[Tuple[float, float, float, float], ...]
 
+#: The image size, decided here once: a side left unset is the MIT 6.837 ``viewport``'s,
+#: else DEFAULT_IMAGE_SIZE (:meth:`Scene.image_size`); no side is larger than MAX_IMAGE_SIZE
+#: (the viewport's bound in the parser, the options' range).
+DEFAULT_IMAGE_SIZE = 512
+MAX_IMAGE_SIZE = 16384
+
 IDENTITY: Matrix4 = (
     (1.0, 0.0, 0.0, 0.0),
     (0.0, 1.0, 0.0, 0.0),
@@ -217,5 +223,5 @@ class Scene:
 
     def image_size(self, width: Optional[int] = None, height: Optional[int] = None):
         """(width, height) of the image: each given size, else the viewport's, else 512."""
-        default = self.viewport or (512, 512)
+        default = self.viewport or (DEFAULT_IMAGE_SIZE, DEFAULT_IMAGE_SIZE)
         return (int(width) if width else default[0], int(height) if height else default[1])

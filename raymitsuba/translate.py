@@ -51,6 +51,7 @@ at that floor the budget gives way, up to ``Options.tessellation_limit`` triangl
 from __future__ import annotations
 
 import collections
+import dataclasses
 import math
 import operator
 from itertools import chain
@@ -60,6 +61,7 @@ import numpy as np
 
 from raymitsuba import tessellation
 from raymitsuba.model import Material, ObjectKind, Scene, SceneObject
+from raymitsuba.options import RenderOptions
 
 SILHOUETTE_ERROR_PX = 0.05
 MIN_SEGMENTS, MAX_SEGMENTS = 48, 768
@@ -76,13 +78,12 @@ Z_TO_Y = np.array([[1, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]], dty
 
 
 @dataclass(frozen=True)
-class Options:
-    width: int = 512
-    height: int = 512
-    spp: int = 1
-    max_depth: int = 5
-    srgb: bool = False  # decode 8-bit textures from sRGB (and encode 8-bit output)
-    tessellation_budget: int = TESSELLATION_BUDGET  # see the module docstring
+class Options(RenderOptions):
+    """The render options (:class:`raymitsuba.options.RenderOptions`, each explained there)
+    and the translator's own: the tessellation budget and limit (see the module docstring).
+    A size left None is the scene's (:meth:`~raymitsuba.model.Scene.image_size`)."""
+
+    tessellation_budget: int = TESSELLATION_BUDGET
     tessellation_limit: int = TESSELLATION_LIMIT
 
 
@@ -95,8 +96,10 @@ def translate(model: Scene, options: Options | None = None, **kwargs) -> dict:
     import mitsuba as mi  # the caller has set the variant (raymitsuba.backend)
 
     options = options or Options(**kwargs)
+    width, height = model.image_size(options.width, options.height)
+    options = dataclasses.replace(options, width=width, height=height)
     scene = {"type": "scene",
-             "integrator": {"type": "raywhitted", "max_depth": options.max_depth},
+             "integrator": {"type": "raywhitted", **options.integrator_properties()},
              "sensor": sensor(model, options, mi),
              "background": {"type": "raybackground", "color": rgb(model.background, mi)}}
     for material in model.materials:

@@ -32,7 +32,6 @@ from .camera import camera_rays, pixel_means, pixel_spread
 from .tree import TreeTooLarge
 
 GIB = 1 << 30
-DEFAULT_BUDGET = 2 * GIB
 # Memory per ray of a chunk's tree (what every generation keeps, the widest generation's
 # transient arrays, Embree's and the allocator's share). Measured peaks on the benchmark
 # scenes: 50-95 bytes per ray (primal), about 100 for a whole AD step, whose graph keeps
@@ -81,7 +80,7 @@ class Chunker:
     ``rays_per_camera_ray``: the estimate to size the first chunk with; ``progress``:
     optional callable(pixels_done, chunks_done) called after each chunk."""
 
-    def __init__(self, tracer, scene, sensor, budget=DEFAULT_BUDGET, rays_per_camera_ray=2.0,
+    def __init__(self, tracer, scene, sensor, budget, rays_per_camera_ray=2.0,
                  progress=None, terms=None, max_pixels=None):
         self.tracer, self.scene, self.sensor = tracer, scene, sensor
         self.max_pixels = max_pixels  # at most this many pixels a chunk (None: by budget only)

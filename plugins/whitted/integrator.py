@@ -63,18 +63,9 @@ with respect to kt is attached in closed form (``with_kt_derivative``). A branch
 whose weight is exactly 0 is not traced, so the derivative with respect to kr or
 kt *at* 0 does not see the branch it would open.
 
-Parameters:
-
-* ``max_depth`` (int, default 5): bounces after the camera ray
-* ``max_shadow_crossings`` (int, default 16): a shadow ray that crosses more
-  transparent surfaces than this is taken as blocked
-* ``bailout`` (float, default 0): a ray whose path weight (the product of the kr / kt
-  weights from the camera ray down to it) is not above this is not traced; 0 traces the
-  exact tree, whose width can grow with every generation (glass at depth 64)
-* ``aa`` (float, default 0: off): the adaptive anti-aliasing threshold
-* ``memory_budget`` (bytes, default 2 GiB): what one chunk's tree may take
-* ``time_limit`` (seconds, default 3600; 0: none): longer estimated renders are refused
-* ``chunk_pixels`` (int, default 0: by budget only): at most this many pixels a chunk
+Parameters: the render options whose reader is the integrator; their list below, with
+types, defaults and meanings, is made from :class:`raymitsuba.options.RenderOptions`,
+where each is stated.
 """
 
 import os
@@ -83,14 +74,18 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from raymitsuba import options
+from raymitsuba.options import RenderOptions
+
 from . import antialias
 from .camera import box_filter, camera_rays, pixel_means
-from .chunks import (BYTES_PER_RAY, DEFAULT_BUDGET, GIB, BudgetError, Chunker, Job,
+from .chunks import (BYTES_PER_RAY, GIB, BudgetError, Chunker, Job,
                       means_and_spread, probe)
 from .tree import Tracer
 
+__doc__ += options.describe(options.INTEGRATOR)
+
 RAYS_PER_SECOND = 4e6  # the time guard's figure: rays traced per second (2 CPU cores)
-DEFAULT_TIME_LIMIT = 3600.0  # seconds of estimated render time refused without an override
 
 
 def available_memory():
@@ -108,18 +103,12 @@ def available_memory():
 class Whitted(mi.CppADIntegrator):
     def __init__(self, props):
         super().__init__(props)
-        max_depth = int(props.get("max_depth", 5))
-        if max_depth < 0:
-            raise ValueError("raywhitted: max_depth must be >= 0")
-        bailout = float(props.get("bailout", 0.0))
-        if bailout < 0:
-            raise ValueError("raywhitted: bailout must be >= 0")
-        self.tracer = Tracer(max_depth, int(props.get("max_shadow_crossings", 16)), bailout)
-        self.aa = float(props.get("aa", 0.0))
-        self.memory_budget = int(float(props.get("memory_budget", DEFAULT_BUDGET)))
-        self.time_limit = float(props.get("time_limit", DEFAULT_TIME_LIMIT))
-        chunk_pixels = int(props.get("chunk_pixels", 0))
-        self.chunk_pixels = chunk_pixels or None  # at most this many pixels a chunk (tests)
+        options = RenderOptions.from_properties(props)  # defaults and ranges: raymitsuba.options
+        self.tracer = Tracer(options.max_depth, options.max_shadow_crossings, options.bailout)
+        self.aa = options.aa or 0.0
+        self.memory_budget = options.memory_budget
+        self.time_limit = options.time_limit
+        self.chunk_pixels = options.chunk_pixels or None  # at most this many pixels a chunk
         self.progress = None  # optional callable(pixels_done, pixels_total, chunks_done)
         self.chunks = 0  # of the last render
         self.rays_traced = 0  # of the last render: rays of every chunk's tree

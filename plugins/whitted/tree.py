@@ -103,7 +103,7 @@ class Tracer:
     :class:`TreeTooLarge` (None: no limit); ``progress``: optional callable(generations_done).
     """
 
-    def __init__(self, max_depth=5, max_shadow_crossings=16, min_weight=0.0):
+    def __init__(self, max_depth, max_shadow_crossings, min_weight):
         self.max_depth = max_depth
         self.max_shadow_crossings = max_shadow_crossings
         self.min_weight = min_weight

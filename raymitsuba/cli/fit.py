@@ -14,7 +14,7 @@ from raymitsuba import images
 from raymitsuba.cli import common as cli_common
 from raymitsuba.atomic import atomic_path
 from raymitsuba.cli.common import EXIT_FAILURE, EXIT_SCENE_ERROR, report
-from raymitsuba.cli.options import dialect_option, parse_size
+from raymitsuba.cli.options import dialect_option, render_options
 
 PLOT_FORMATS = (".png", ".pdf", ".svg")
 
@@ -56,24 +56,16 @@ def show(value) -> str:
               help="Adam steps.")
 @click.option("--lr", default=0.02, show_default=True, type=click.FloatRange(0, min_open=True),
               help="Learning rate, relative to each parameter's scale max(1, |start|).")
-@click.option("--spp", default=1, show_default=True, type=click.IntRange(1, 4096),
-              help="Samples per pixel of the renders (1: the pixel centre).")
-@click.option("--max-depth", default=5, show_default=True, type=click.IntRange(0, 64),
-              help="Bounces after the camera ray.")
-@click.option("--aa", default=None, type=click.FloatRange(0, min_open=True), metavar="THRESHOLD",
-              help="Adaptive anti-aliasing of the renders (see raymitsuba render --help).")
-@click.option("--memory-budget", default="2G", show_default=True, metavar="SIZE",
-              help="Memory a chunk of camera rays may take (e.g. 512M, 4G).")
+@render_options("spp", "max_depth", "aa", "memory_budget")
 @click.option("--truth", default=None, type=click.Path(dir_okay=False),
               help="The true scene (same structure): also print each parameter's error.")
 @click.option("--plot", default=None, type=click.Path(dir_okay=False),
               help="Write the loss curve and target / start / fitted images (.png, .pdf, .svg).")
-@click.option("--srgb", is_flag=True,
-              help="Decode an 8-bit target (and textures) from sRGB; show the plot's images in sRGB.")
+@render_options("srgb", srgb="Decode an 8-bit target (and textures) from sRGB; show the plot's "
+                                 "images in sRGB.")
 @click.option("-q", "--quiet", is_flag=True, help="Print only the final summary.")
 @dialect_option
-def fit(scene, target, output, keys, iters, lr, spp, max_depth, aa, memory_budget, truth, plot,
-        srgb, quiet, dialect):
+def fit(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, **options):
     """Fit parameters of the .RAY file SCENE so that its render matches TARGET.
 
     Minimises the mean squared error over pixels and channels (linear values) with
@@ -86,7 +78,7 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, aa, memory_budge
     if plot is not None and os.path.splitext(plot)[1].lower() not in PLOT_FORMATS:
         raise click.BadParameter(f"{plot}: use one of {', '.join(PLOT_FORMATS)}",
                                  param_hint="--plot")
-    budget = parse_size(memory_budget)
+    srgb = bool(options["srgb"])
     model, data = parse_scene(scene, dialect)
     report(model.warnings)
     try:
@@ -131,10 +123,8 @@ def fit(scene, target, output, keys, iters, lr, spp, max_depth, aa, memory_budge
 
     try:
         backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
-        loaded = api.load(model, width=width, height=height, spp=spp, max_depth=max_depth,
-                          srgb=srgb, aa=aa, memory_budget=budget)
-        result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, spp=spp,
-                             callback=progress)
+        loaded = api.load(model, width=width, height=height, **options)
+        result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, callback=progress)
         fitted_text = fitting.rewrite_scene(data, model, result.fitted)
         if plot is not None:
             write_plot(plot, target_image, result, srgb)

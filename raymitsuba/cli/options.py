@@ -1,12 +1,23 @@
-"""The options several ``raymitsuba`` commands share, stated once here."""
+"""The options several ``raymitsuba`` commands share, stated once here.
+
+The render options (``--width`` ... ``--srgb``) are made from the record of
+:mod:`raymitsuba.options`: each one's flag (its name with dashes), type, range, default
+and help text come from there; a command passes the values on to :func:`raymitsuba.load`
+as keywords of the same names (None where the record's default is "unset").
+"""
 
 from __future__ import annotations
 
+from typing import Callable, Optional
+
 import click
+
+from raymitsuba import options
+from raymitsuba.format import DIALECT_CHOICES
 
 #: ``--dialect``, for every command that reads a scene.
 dialect_option = click.option(
-    "--dialect", type=click.Choice(["auto", "comp575", "mit6837"]), default="auto",
+    "--dialect", type=click.Choice(list(DIALECT_CHOICES)), default="auto",
     show_default=True,
     help="The .RAY dialect: auto (decided from the file's commands), comp575 or mit6837 "
          "(the parent MIT 6.837 format).")
@@ -26,3 +37,55 @@ def parse_size(text: str) -> int:
     if value <= 0:
         raise click.BadParameter(f"{text!r}: must be positive")
     return int(value * SIZE_UNITS[unit])
+
+
+def format_size(size: int) -> str:
+    """Bytes as :func:`parse_size` reads them back: 2147483648 -> '2G'."""
+    for unit in ("T", "G", "M", "K"):
+        if size % SIZE_UNITS[unit] == 0:
+            return f"{size // SIZE_UNITS[unit]}{unit}"
+    return str(size)
+
+
+class Size(click.ParamType):
+    """A number of bytes written ``2G``, ``512M``, ``3.5GB`` or ``1000000``."""
+
+    name = "size"
+
+    def convert(self, value, param, ctx):
+        return value if isinstance(value, int) else parse_size(value)
+
+
+def _click_type(spec: options.Spec):
+    if spec.size:
+        return Size()
+    low_open = dict(min_open=True) if spec.low_open else {}
+    if spec.kind is int:
+        return click.IntRange(spec.low, spec.high, **low_open)
+    return click.FloatRange(spec.low, spec.high, **low_open)
+
+
+def render_option(name: str, help: Optional[str] = None) -> Callable:
+    """The click option of the render option ``name`` (see the module docstring); ``help``
+    replaces the record's text where a command gives the option more to do."""
+    spec, value = options.spec(name), options.default(name)
+    flag = "--" + name.replace("_", "-")
+    text = help or spec.help
+    if spec.kind is bool:
+        return click.option(flag, name, is_flag=True, default=value, help=text)
+    if value is None:  # shown as what it means
+        return click.option(flag, name, type=_click_type(spec), default=None,
+                            metavar=spec.metavar, show_default=spec.unset, help=text)
+    return click.option(flag, name, type=_click_type(spec), metavar=spec.metavar,
+                        default=format_size(value) if spec.size else value, show_default=True,
+                        help=text)
+
+
+def render_options(*names: str, **helps: str) -> Callable:
+    """A decorator adding the render options ``names`` to a command, in that order
+    (``helps``: command-specific help texts by option name)."""
+    def decorate(command):
+        for name in reversed(names):
+            command = render_option(name, helps.get(name))(command)
+        return command
+    return decorate

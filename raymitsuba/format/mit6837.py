@@ -28,12 +28,11 @@ from raymitsuba.format.builder import SceneBuilder, number_problem
 from raymitsuba.format.diagnostics import did_you_mean, fmt
 from raymitsuba.format.geometry import magnitude_if_usable, similarity
 from raymitsuba.format.lexer import COMP575, MIT6837, Token, stream_6837
-from raymitsuba.model import Camera, ObjectKind, Scene, SceneObject, TriangleMesh, Vec3
+from raymitsuba.model import (MAX_IMAGE_SIZE, Camera, ObjectKind, Scene, SceneObject,
+                              TriangleMesh, Vec3)
 
 #: The MIT 6.837 camera defaults (fov horizontal).
 CAMERA = Camera(eye=(0.0, 0.0, 10.0), fov=30.0, fov_axis="x")
-#: The largest viewport side (as the CLI's --width / --height).
-MAX_VIEWPORT = 16384
 
 _NAMES = C.COMMAND_NAMES[MIT6837]
 _CANONICAL = {name.lower(): name for name in _NAMES}
@@ -163,9 +162,9 @@ class Mit6837Parser(SceneBuilder):
         if values is None:
             return
         for k, (name, value) in enumerate(zip(("width", "height"), values), 1):
-            if value != int(value) or not 1 <= value <= MAX_VIEWPORT:
+            if value != int(value) or not 1 <= value <= MAX_IMAGE_SIZE:
                 self._error_tok(k, f"the viewport {name} must be a whole number of pixels from 1 "
-                                   f"to {MAX_VIEWPORT}, found {fmt(value)}")
+                                   f"to {MAX_IMAGE_SIZE}, found {fmt(value)}")
                 return
         if self.viewport is not None:
             self._warning_tok(0, "`viewport` given again; this value replaces the earlier one "
