@@ -5,16 +5,9 @@
     loaded.params["mat1.color"]                   # Color3f, differentiable
     loaded.params["light2.position"]
 
-Parameter keys (``mi.traverse`` of the scene): ``mat{i}.{field}`` with i the
-material's number in file order (``mat0`` is the default material) and field
-one of color, ambient_mix, diffuse_mix, specular_mix, phong_coeff,
-reflectivity, refractivity, ior; ``light{j}.color``, ``.position``,
-``.direction``, ``.shape_coefficient`` with j counting ``light`` lines from 1;
-``background.color``. :class:`raymitsuba.format.commands.ParamKey` parses them.
-
-Both dialects load the same way (``dialect="auto"`` decides from the text; force it
-with ``"comp575"`` or ``"mit6837"``). The image size is ``width`` x ``height``; a
-size left out (None) comes from the MIT 6.837 ``viewport``, else 512.
+The parameter keys are stated by :class:`raymitsuba.format.commands.ParamKey`, the render
+options by :class:`raymitsuba.options.RenderOptions`. Both dialects load the same way
+(``dialect="auto"`` decides from the text; force it with ``"comp575"`` or ``"mit6837"``).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ missing or too old LLVM is a one-line :class:`LLVMError`, not an abort.
 
 Mitsuba's own Python AD integrators (``prb``, ``prbvolpath``, ``direct_projective``,
 ...) are loaded by ``mi.set_variant`` for every JIT variant; their ``@dr.syntax``
-transforms make that the slowest step of start-up (about 0.2 s). raymitsuba never
+transforms make that the slowest step of start-up. raymitsuba never
 uses them (its integrator is ``raywhitted``), so the command line asks
 :func:`mitsuba` to skip them (``mitsuba_integrators=False``); the library loads them
 as Mitsuba does unless told otherwise, and :func:`load_mitsuba_integrators` loads

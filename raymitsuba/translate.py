@@ -38,7 +38,7 @@ polygonal silhouette is within e = 0.05 pixel of the true one (clamped to
 The **tessellation budget** bounds the memory and the load time (Embree's BVH build is
 the largest cost per triangle): when the tessellated objects together would have more
 than ``Options.tessellation_budget`` triangles (TESSELLATION_BUDGET, 250,000: about 40 MB
-of mesh arrays and BVH, 0.4 s of load), every count is scaled down by one common factor,
+of mesh arrays and BVH at BYTES_PER_TRIANGLE), every count is scaled down by one common factor,
 the largest that fits, trading silhouette accuracy (about r pi^2 / (2 m^2) pixels for an
 object of r pixels with m segments) for memory and time. In practice the budget first
 removes the margin of MIN_SEGMENTS on small objects (a 5-pixel object needs 23 segments
@@ -136,8 +136,8 @@ def sensor(model, options, mi):
 # -- materials, lights --------------------------------------------------------------------------
 def bsdf(material: Material, mi):
     """The ``rayphong`` of ``material``: its color and the fields that differ from the
-    plugin's default (the format's, ``Material()``'s), down to the sign of a zero (each
-    property costs mi.load_dict ~1.5 us; 0.05 s at 10^4 materials)."""
+    plugin's default (the format's, ``Material()``'s), down to the sign of a zero
+    (mi.load_dict parses every property it is given, for every material)."""
     out = {"type": "rayphong", "id": f"mat{material.index}", "index": material.index,
            "color": rgb(material.color, mi)}
     for name, default in MATERIAL_DEFAULTS:

@@ -193,7 +193,14 @@ _KEY = re.compile(r"(?:(mat|light)(\d+)|(background))\.([a-z_]+)")
 
 @dataclass(frozen=True)
 class ParamKey:
-    """A parameter key: ``mat3.color`` is ParamKey("mat", 3, "color")."""
+    """A parameter key: ``mat3.color`` is ParamKey("mat", 3, "color").
+
+    The keys, decided here (the translator gives the Mitsuba objects these ids, so they are
+    also the keys of ``mi.traverse``): ``mat{i}.{field}`` with i the material's number in
+    file order (``mat0``: the default material; MIT 6.837 ``surface`` commands count alike)
+    and field one of ``Material.FIELDS``; ``light{j}.{field}`` with j counting ``light``
+    lines from 1 and field one of :func:`light_fields` of its kind (color, position,
+    direction, shape_coefficient); ``background.color``."""
 
     owner: str  # "mat", "light" or "background"
     index: Optional[int]  # None for the background
