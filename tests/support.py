@@ -8,6 +8,8 @@
 * A few float64 intersection routines (sphere, ellipsoid, plane) and the contract's
   local shading formula, for the same purpose.
 * :data:`REPO`: the repository's root (test files live at several depths of tests/).
+* :data:`FIT_SCENE`, :data:`FIT_SPHERE`, :data:`FIT_MIT_SCENE`: the scenes of the fit and
+  write-back tests.
 """
 
 from __future__ import annotations
@@ -196,3 +198,44 @@ def lit_runs(mask):
         cols = np.flatnonzero(row)
         out.append((cols[0], cols[-1]) if len(cols) else None)
     return out
+
+
+# -- scenes shared by the fit and write-back tests ---------------------------------------------
+# Comments, tabs, odd spacing, several materials and every kind of light: everything but
+# the fitted numbers must survive a rewrite byte for byte.
+FIT_SCENE = (
+    "# a test scene\r\n"
+    "eye 0.1 0.05 5\r\n"
+    "fov 35   # degrees\r\n"
+    "light 0.9 0.85 0.8 point 1.5 1 6\r\n"
+    "light\t0.3 0.3 0.3   ambient # fill\r\n"
+    "light 1 1 1 directional -0.3 -0.2 -1\r\n"
+    "light 1 1 1 spotlight 0 3 3 0 -1 -1 4 # spot\r\n"
+    "material 0.8 0.45 0.3 0.4 \t 0.40 0.5 12 0 0 1 # the sphere\r\n"
+    "sphere\r\n"
+    "material 1 1 1 1 1 0 1 0 0 1\n"
+    "\n"
+    "material 1 1 1 1 1 0 1 0 0.5 1e0\r"
+    "translate 3 0 0\r"
+    "sphere\n"
+)
+
+# A tiny scene for fits: one sphere, ambient + point light.
+FIT_SPHERE = """\
+eye 0.1 0.05 5
+fov 35
+light 0.9 0.85 0.8 point 1.5 1 6
+light 0.3 0.3 0.3 ambient
+material 0.8 0.45 0.3 0.4 0.7 0.5 12 0 0 1
+sphere
+"""
+
+# Both dialects: a MIT 6.837 scene with a glass sphere (index written across lines) and a mesh.
+FIT_MIT_SCENE = ("# MIT 6.837 / index is n_outside / n_inside\r\n"
+       "background 0.1 0.2 0.3\r\n"
+       "light 1 1 1 point 0 4 6\r\n"
+       "surface 0.9 0.9 1 0.1 0.2 0.6 40\r\n"
+       "   0.1 0.8 0.5   / glass, written across lines\r\n"
+       "sphere 0 0 0 1\r\n"
+       "triangles\r\nv 0 0 -2\r\nv 1 0 -2\r\nv 0 1 -2\r\n"
+       "surface 1 0 0 0.2 0.8 0 1 0 0 1\r\nf 0 1 2\r\nend\r\n")

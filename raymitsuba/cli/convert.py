@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from raymitsuba.cli import common as cli_common
+from raymitsuba.cli import common
 from raymitsuba.atomic import atomic_path
 from raymitsuba.cli.common import EXIT_FAILURE, EXIT_SCENE_ERROR, report
 from raymitsuba.cli.options import dialect_option
@@ -25,17 +25,17 @@ def convert(scene, output, dialect):
     from raymitsuba.format.convert import to_comp575
     from raymitsuba.format.lexer import MIT6837
 
-    model = cli_common.parse_or_exit(scene, dialect)
+    model = common.parse_or_exit(scene, dialect)
     report(model.warnings)
     if model.dialect != MIT6837:
-        cli_common.fail("raymitsuba convert", f"{scene} is already in the COMP 575 dialect; "
+        common.fail("raymitsuba convert", f"{scene} is already in the COMP 575 dialect; "
                                               f"nothing to convert", EXIT_SCENE_ERROR)
     text = to_comp575(model)
     try:
         with atomic_path(output, ".ray") as tmp, open(tmp, "w", encoding="utf-8") as f:
             f.write(text)
     except OSError as e:
-        cli_common.fail("raymitsuba convert", f"cannot write {output}: {e.strerror or e}",
+        common.fail("raymitsuba convert", f"cannot write {output}: {e.strerror or e}",
                         EXIT_FAILURE)
     width, height = model.image_size()
     click.echo(f"wrote {output} (COMP 575; render it at {width} x {height})")

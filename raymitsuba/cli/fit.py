@@ -11,7 +11,7 @@ import os
 import click
 
 from raymitsuba import images
-from raymitsuba.cli import common as cli_common
+from raymitsuba.cli import common
 from raymitsuba.atomic import atomic_path
 from raymitsuba.cli.common import EXIT_FAILURE, EXIT_SCENE_ERROR, report
 from raymitsuba.cli.options import dialect_option, render_options
@@ -21,12 +21,12 @@ PLOT_FORMATS = (".png", ".pdf", ".svg")
 
 def fail(message: str, code: int = EXIT_SCENE_ERROR):
     """Exit with ``raymitsuba fit: error: MESSAGE`` (by default for bad input: status 2)."""
-    cli_common.fail("raymitsuba fit", message, code)
+    common.fail("raymitsuba fit", message, code)
 
 
 def parse_scene(path: str, dialect: str = "auto"):
     """The parsed scene and its bytes (exit 2 with FILE:LINE:COL diagnostics on errors)."""
-    model = cli_common.parse_or_exit(path, dialect)
+    model = common.parse_or_exit(path, dialect)
     try:
         with open(path, "rb") as f:
             data = f.read()
@@ -138,7 +138,7 @@ def fit(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, **o
     except OSError as e:
         fail(f"cannot write the output: {e}", EXIT_FAILURE)
     except Exception as e:  # Mitsuba's own errors (e.g. a texture it cannot decode)
-        fail(f"{scene}: {cli_common.error_message(e)}", EXIT_FAILURE)
+        fail(f"{scene}: {common.error_message(e)}", EXIT_FAILURE)
 
     click.echo(f"fitted {len(selected)} parameter(s) in {result.iterations} iterations, "
                f"{result.seconds:.1f} s: loss {result.losses[0]:.6e} -> {result.final_loss:.6e}")
