@@ -11,8 +11,8 @@ module             what it owns
 ``builder``        the scene state and the commands both dialects share
 ``comp575``        the COMP 575 reader
 ``mit6837``        the MIT 6.837 reader
-``textures``       texture files: sniffing and loading checks
-``geometry``       the transform stack's small vector algebra
+``textures``       texture files: which image format a file holds
+``geometry``       the parser's vector and matrix helpers (transform stack)
 ``diagnostics``    ``FILE:LINE:COLUMN`` messages, "did you mean"
 ``summary``        what ``raymitsuba check`` prints
 ``convert``        a MIT 6.837 scene written as COMP 575 text
