@@ -89,7 +89,7 @@ class HitTable:
     def __init__(self):
         # What the table is of (see update)
         self.key = None  # per shape: (registry id, kind, its buffers' JIT ids or the sphere's box)
-        self.buffers = None  # per shape: its mesh buffers, the sphere, or None (kept: ids not reused)
+        self.buffers = None  # per shape: its mesh buffers, the sphere or None (kept: see update)
         self.uv = False  # whether the spheres' texture coordinates are computed (to_object read)
         self.supported = False  # whether every shape is in the table (else Mitsuba's dispatch)
         # By shape registry id (see build)

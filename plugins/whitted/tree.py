@@ -110,16 +110,16 @@ class Tracer:
         self.max_rays = None
         self.progress = None
         self.rays_per_generation = []  # of the last trace: how many rays each depth traced
-        self.geometry = HitTable()  # the scene's geometry by shape id, kept across renders
-        self.last_terms = None  # of the last render (see scene_terms)
+        # Caches across renders, each keyed by the scene's shapes (see scene_terms):
+        self.geometry = HitTable()  # the geometry table: rebuilt when the shapes change
+        self.surfaces = None  # the last surface table: its layout serves the same shapes again
 
     def scene_terms(self, scene):
         """What shading needs from ``scene`` (its SceneTerms, with the geometry table), built
         once per render and shared by its chunks."""
         with no_cyclic_gc():  # a Python pass over every shape and surface
-            terms = SceneTerms(scene, self.last_terms)
-            terms.geometry = self.geometry.update(scene, uv=terms.surfaces.uses_uv)
-        self.last_terms = terms  # its surface layout is reused by the next render
+            terms = SceneTerms(scene, self.surfaces, self.geometry)
+        self.surfaces = terms.surfaces
         return terms
 
     def trace(self, scene, ray, terms=None):
