@@ -107,10 +107,10 @@ class Plan:
 
 
 def refine(image, spp, threshold, chunker, estimate):
-    """Refine the first pass ``image`` ((H, W, 3) float32, traced at ``spp`` samples per
-    pixel) at the contrast ``threshold``: every level's pixels are traced by ``chunker``
-    (each level first admitted by the guards' ``estimate``, its pixels being known) and
-    their values written into ``image``. Returns the :class:`Plan`."""
+    """Refine the first pass ``image`` ((H, W, 3) float32, C-contiguous, traced at ``spp``
+    samples per pixel) at the contrast ``threshold``: every level's pixels are traced by
+    ``chunker`` (each level first admitted by the guards' ``estimate``, its pixels being
+    known) and their values written into ``image``, in place. Returns the :class:`Plan`."""
     height, width = image.shape[:2]
     values = image.reshape(-1, 3)
     candidates = np.flatnonzero(contrast_mask(image, threshold)).astype(np.uint32)

@@ -44,10 +44,12 @@ class Job:
     image or, with ``pixels`` (a numpy uint32 array), those pixels in that order."""
 
     def __init__(self, width, height, spp, first=0, count=None, pixels=None):
-        self.width, self.height, self.spp = width, height, spp
+        self.width, self.height = width, height  # the image
+        self.spp = spp  # samples per pixel
+        # uint32: the job's pixels, in order (None: the range from first)
         self.pixels = None if pixels is None else np.ascontiguousarray(pixels, dtype=np.uint32)
-        self.first = first
-        self.count = (len(self.pixels) if pixels is not None
+        self.first = first  # the range's first pixel
+        self.count = (len(self.pixels) if pixels is not None  # how many pixels
                       else (width * height - first if count is None else count))
 
     def rays(self, sensor, start, count):

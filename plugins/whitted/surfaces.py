@@ -170,7 +170,8 @@ def image_textures(bsdfs):
     return [texture for _, texture in textures.values()], [mi.UInt32(row) for row in rows]
 
 
-# The materials' host values as one numpy record per material, a field per parameter.
+# A material's host values as a numpy record: a field per parameter, in the order of
+# SURFACE_PARAMETERS, the order in which host_parameters picks them by name.
 HOST_RECORD = np.dtype([(name, np.float32, 3) if name == "color" else (name, np.float32)
                         for name in SURFACE_PARAMETERS])
 
@@ -181,7 +182,7 @@ def host_parameters(layout):
     zeros."""
     values_of = itemgetter(*SURFACE_PARAMETERS)
     records = np.array([values_of(material.host_values) for material in layout.materials],
-                       HOST_RECORD)  # (by name: each field is that of its parameter)
+                       HOST_RECORD)
     rows = max(layout.count, MIN_ROWS)
     host = {}
     for name in SURFACE_PARAMETERS:
