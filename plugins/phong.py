@@ -11,8 +11,8 @@ unit direction toward a light of intensity I::
 The highlight is not tinted by the base color C. :func:`phong_local` is the one
 implementation of this formula; the Whitted integrator calls it with the
 parameters of the surface it hit, gathered from the surface table
-(``_surfaces.py``), which it builds from this plugin's members through the surface
-interface (``_protocol.py``). So the BSDF itself holds parameters only: it has no
+(``whitted/surfaces.py``), which it builds from this plugin's members through the surface
+interface (``whitted/protocol.py``). So the BSDF itself holds parameters only: it has no
 ``eval``, ``sample`` or ``pdf`` (it is not a radiometric BSDF, and Mitsuba's own
 integrators cannot render it).
 
@@ -61,17 +61,17 @@ class Phong(mi.BSDF):
         self.color = mi.Color3f(color)
         for name, value in zip(FLOAT_PARAMS, values):
             setattr(self, name, mi.Float(value))
-        self.host_values = (color[0], color[1], color[2], *values)
+        self.host_values = {"color": (color[0], color[1], color[2]),
+                            **dict(zip(FLOAT_PARAMS, values))}
         self.parameters_changed([])
         self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.GlossyReflection \
             | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
         self.m_components = [self.m_flags]
 
     # The surface interface (plugins/whitted/protocol.py): a plain material is its own material,
-    # with no checkerboard and no image texture. ``host_values``: the parameters' values
-    # as Python floats, kept by ``parameters_changed`` (Mitsuba calls it on every
-    # ``SceneParameters.update`` that changes one), so a render reads 10^4 materials
-    # without 10^5 reads of single Dr.Jit values.
+    # with no checkerboard and no image texture. Its ``host_values`` are kept by
+    # ``parameters_changed``, which Mitsuba calls on every ``SceneParameters.update`` that
+    # changes one.
     @property
     def material(self):
         return self
@@ -92,10 +92,11 @@ class Phong(mi.BSDF):
             self.host_values = self.read_values()
 
     def read_values(self):
-        """(r, g, b, ka, kd, ks, n, kr, kt, eta) as Python floats, read from the parameters."""
+        """The parameters' values by name as Python floats (``color``: (r, g, b)), read from
+        the parameters."""
         color = self.color
-        return (color.x[0], color.y[0], color.z[0],
-                *(getattr(self, name)[0] for name in FLOAT_PARAMS))
+        return {"color": (color.x[0], color.y[0], color.z[0]),
+                **{name: getattr(self, name)[0] for name in FLOAT_PARAMS}}
 
     def to_string(self):
         return f"Phong[color={self.color}, kd={self.diffuse_mix}, ks={self.specular_mix}]"

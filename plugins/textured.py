@@ -9,7 +9,7 @@ integrator multiplies the material's base color by the texels::
     C(si) = material.color * texture(si) * checker(si)
 
 Everything else is the material's (see ``phong.py``). Like the material, this
-plugin only provides the surface interface (``_protocol.py``): ``material``,
+plugin only provides the surface interface (``whitted/protocol.py``): ``material``,
 ``image_textures`` (the ``texture``, if any) and ``checker_size`` (the
 ``checker``'s square size, 0 without one); it has no ``eval``.
 

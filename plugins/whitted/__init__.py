@@ -1,18 +1,19 @@
 """``raywhitted``, the .RAY format's recursive (Whitted) ray tracer, and its parts.
 
-=================  ==========================================================
+=================  ===================================================================
 module             what it owns
-=================  ==========================================================
-``integrator``     the ``mi.Integrator``: renders, gradients, the guards
+=================  ===================================================================
+``integrator``     the ``mi.Integrator``: a render's steps, its gradients
 ``protocol``       what the integrator reads from surfaces, lights, background
 ``camera``         which rays leave the camera for each pixel; the box filter
 ``surfaces``       the surface table: every surface's parameters by slot
 ``hits``           surface interactions by lookup in one geometry table
 ``lift``           where shadow rays leave smooth meshes near the terminator
 ``tree``           the ray tree, traced generation by generation
-``chunks``         which camera rays are traced together, within a budget
-``antialias``      which pixels adaptive anti-aliasing refines, and how
-=================  ==========================================================
+``chunks``         which camera rays are traced together, within a budget; the probe
+``guards``         what a ray costs; the requests refused before tracing (BudgetError)
+``antialias``      which pixels adaptive anti-aliasing refines, and how; its plan
+=================  ===================================================================
 """
 
 from raymitsuba.plugins.whitted.integrator import Whitted

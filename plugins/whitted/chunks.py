@@ -7,11 +7,11 @@ whole ray tree at once. A pixel's value does not depend on the chunk it is in, s
 image is the same, bit for bit, however it is split.
 
 **Memory.** A chunk's ray tree is bounded by a number of rays, ``budget /
-BYTES_PER_RAY`` (``BYTES_PER_RAY_AD`` when the chunk is traced with AD, which keeps
-every generation's graph for the adjoint pass): the tracer raises ``TreeTooLarge``
-before a generation would take the tree past it, and the chunk is then traced again
-in halves. How many pixels a chunk holds follows the largest number of rays per
-camera ray seen so far (at first twice the probe's average: the tree's size varies
+BYTES_PER_RAY`` (``BYTES_PER_RAY_AD`` when the chunk is traced with AD, which keeps every
+generation's graph for the adjoint pass; both in ``guards.py``): the tracer raises
+``TreeTooLarge`` before a generation would take the tree past it, and the chunk is then
+traced again in halves. How many pixels a chunk holds follows the largest number of rays
+per camera ray seen so far (at first twice the probe's average: the tree's size varies
 over the image, mirrors and glass against sky), so that a chunk fits at the first
 attempt (a failed attempt is work thrown away). Everything is decided from ray counts, so
 the split, like the image, is the same on every run.
@@ -19,7 +19,7 @@ the split, like the image, is the same on every run.
 **Time.** Before a render, :func:`probe` traces a spread-out sample of the image's
 pixels (at most ``PROBE_PIXELS``, tree at most ``PROBE_RAYS`` rays, extrapolated
 from its growth past that) to estimate the rays per camera ray: the chunk size to
-start with, and the guard's estimate of the whole render's time.
+start with, and the guards' estimate of the whole render (``guards.Estimate``).
 """
 
 from __future__ import annotations
@@ -28,25 +28,14 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .camera import camera_rays, pixel_means, pixel_spread
+from .camera import camera_rays
+from .guards import BYTES_PER_RAY, BYTES_PER_RAY_AD, GIB, BudgetError
 from .tree import TreeTooLarge
 
-GIB = 1 << 30
-# Memory per ray of a chunk's tree (what every generation keeps, the widest generation's
-# transient arrays, Embree's and the allocator's share). Measured peaks on the benchmark
-# scenes: 50-95 bytes per ray (primal), about 100 for a whole AD step, whose graph keeps
-# every generation; the figures leave a margin of 2-6x, which the output buffer, an 8-bit
-# encoder's copy of it and Dr.Jit's allocator cache share.
-BYTES_PER_RAY = 200
-BYTES_PER_RAY_AD = 640
 MIN_CHUNK_RAYS = 1 << 12
 MAX_CHUNK_LANES = 1 << 26  # camera rays of one chunk (far below Dr.Jit's 2^32 lanes)
 PROBE_PIXELS = 1024
 PROBE_RAYS = 1 << 20
-
-
-class BudgetError(RuntimeError):
-    """A request no memory budget can hold (one pixel's tree, the output buffer...)."""
 
 
 class Job:
@@ -54,10 +43,12 @@ class Job:
     image or, with ``pixels`` (a numpy uint32 array), those pixels in that order."""
 
     def __init__(self, width, height, spp, first=0, count=None, pixels=None):
-        self.width, self.height, self.spp = width, height, spp
+        self.width, self.height = width, height  # the image
+        self.spp = spp  # samples per pixel
+        # uint32: the job's pixels, in order (None: the range from first)
         self.pixels = None if pixels is None else np.ascontiguousarray(pixels, dtype=np.uint32)
-        self.first = first
-        self.count = (len(self.pixels) if pixels is not None
+        self.first = first  # the range's first pixel
+        self.count = (len(self.pixels) if pixels is not None  # how many pixels
                       else (width * height - first if count is None else count))
 
     def rays(self, sensor, start, count):
@@ -75,22 +66,29 @@ class Job:
 
 
 class Chunker:
-    """Runs jobs chunk by chunk within a memory ``budget`` (bytes); see the module docstring.
+    """Runs jobs chunk by chunk within a memory ``budget`` (bytes), for one render of
+    ``scene`` from ``sensor``; see the module docstring.
 
     ``rays_per_camera_ray``: the estimate to size the first chunk with; ``progress``:
-    optional callable(pixels_done, chunks_done) called after each chunk."""
+    optional callable(pixels_done, pixels_total, chunks_done) called after each chunk;
+    ``terms``: the scene's terms for detached chunks (default: built at the first one);
+    ``max_pixels``: at most this many pixels a chunk (None: by budget only)."""
 
     def __init__(self, tracer, scene, sensor, budget, rays_per_camera_ray=2.0,
                  progress=None, terms=None, max_pixels=None):
-        self.tracer, self.scene, self.sensor = tracer, scene, sensor
+        self.tracer, self.scene, self.sensor = tracer, scene, sensor  # what is traced
+        self.budget = budget  # bytes one chunk's tree may take
         self.max_pixels = max_pixels  # at most this many pixels a chunk (None: by budget only)
+        self.progress = progress  # optional callable(pixels_done, pixels_total, chunks_done)
         self.terms = terms  # the scene's terms for detached chunks (built once)
-        self.budget = budget
+        # The largest rays per camera ray seen so far, which sizes the next chunk
         self.ratio = max(2.0 * float(rays_per_camera_ray), 1.0)
-        self.progress = progress
-        self.pixels_done = 0
-        self.chunks_done = 0
-        self.rays_traced = 0
+        # Counters of the jobs run so far
+        self.pixels_total = 0  # pixels of the jobs run (or running)
+        self.pixels_done = 0  # pixels traced
+        self.chunks_done = 0  # chunks traced
+        self.rays_traced = 0  # rays of every chunk's tree
+        self.rays_per_generation = []  # of the chunk traced last: how many rays each depth traced
 
     def tree_rays(self, ad):
         return max(int(self.budget // (BYTES_PER_RAY_AD if ad else BYTES_PER_RAY)), MIN_CHUNK_RAYS)
@@ -100,34 +98,22 @@ class Chunker:
         with the camera rays' colors (one lane per camera ray, pixel-major). ``visit`` is
         called with AD enabled when ``ad`` (and then the tree is sized for its graph)."""
         max_rays = self.tree_rays(ad)
+        self.pixels_total += job.count
         start = 0
         while start < job.count:
-            pixels = self._chunk_pixels(job, max_rays)
-            count = min(pixels, job.count - start)
-            while True:
-                self.tracer.max_rays = max_rays
-                try:
-                    color = self._trace(job, start, count, ad)
-                    break
-                except TreeTooLarge:
-                    if count == 1:
-                        raise BudgetError(
-                            f"the ray tree of one pixel ({job.spp} samples) exceeds the memory "
-                            f"budget ({self.budget / GIB:.2g} GB): use a smaller --max-depth, "
-                            "a --bailout (e.g. 1e-3) or a larger --memory-budget") from None
-                    count = max(count // 2, 1)
-                finally:
-                    self.tracer.max_rays = None
-            rays = sum(self.tracer.rays_per_generation)
+            count = min(self._chunk_pixels(job, max_rays), job.count - start)
+            trace, count = self._trace_within(job, start, count, ad, max_rays)
+            rays = sum(trace.rays_per_generation)
             self.rays_traced += rays
+            self.rays_per_generation = trace.rays_per_generation
             self.ratio = max(rays / (count * job.spp), self.ratio)
-            visit(start, count, color)
-            del color
+            visit(start, count, trace.color)
+            del trace
             start += count
             self.pixels_done += count
             self.chunks_done += 1
             if self.progress is not None:
-                self.progress(self.pixels_done, self.chunks_done)
+                self.progress(self.pixels_done, self.pixels_total, self.chunks_done)
 
     def _chunk_pixels(self, job, max_rays):
         # 1.5: room for a chunk whose tree is larger than any before
@@ -135,14 +121,29 @@ class Chunker:
         pixels = max(lanes // job.spp, 1)
         return pixels if self.max_pixels is None else min(pixels, self.max_pixels)
 
-    def _trace(self, job, start, count, ad):
+    def _trace_within(self, job, start, count, ad, max_rays):
+        """(The trace of the ``count`` pixels from ``start``, or of the first half of them,
+        halved again until the tree holds at most ``max_rays`` rays; that count)."""
+        while True:
+            try:
+                return self._trace(job, start, count, ad, max_rays), count
+            except TreeTooLarge:
+                if count == 1:
+                    raise BudgetError(
+                        f"the ray tree of one pixel ({job.spp} samples) exceeds the memory "
+                        f"budget ({self.budget / GIB:.2g} GB): use a smaller --max-depth, "
+                        "a --bailout (e.g. 1e-3) or a larger --memory-budget") from None
+                count = max(count // 2, 1)
+
+    def _trace(self, job, start, count, ad, max_rays):
         if ad:  # terms of its own: each chunk's adjoint pass consumes its graph
             with dr.resume_grad():
                 return self.tracer.trace(self.scene, job.rays(self.sensor, start, count),
-                                         self.tracer.scene_terms(self.scene))
+                                         self.tracer.scene_terms(self.scene), max_rays)
         if self.terms is None:
             self.terms = self.tracer.scene_terms(self.scene)
-        return self.tracer.trace(self.scene, job.rays(self.sensor, start, count), self.terms)
+        return self.tracer.trace(self.scene, job.rays(self.sensor, start, count), self.terms,
+                                 max_rays)
 
 
 def probe(tracer, scene, sensor, width, height, spp, terms):
@@ -154,25 +155,22 @@ def probe(tracer, scene, sensor, width, height, spp, terms):
     samples = min(spp, max(PROBE_PIXELS * 4 // len(pixels), 1))  # enough lanes, few rays
     job = Job(width, height, samples, pixels=pixels)
     camera = len(pixels) * samples
-    tracer.max_rays = PROBE_RAYS
     try:
         with dr.suspend_grad():
-            tracer.trace(scene, job.rays(sensor, 0, job.count), terms)
-        return sum(tracer.rays_per_generation) / camera
+            trace = tracer.trace(scene, job.rays(sensor, 0, job.count), terms, PROBE_RAYS)
+        return sum(trace.rays_per_generation) / camera
     except TreeTooLarge as e:
-        widths = list(tracer.rays_per_generation)
-        growth = max(e.lanes / max(widths[-1], 1), 1.0)
-        traced = sum(widths)
-        rest = tracer.max_depth - e.depth + 1  # generations e.depth .. max_depth
-        if growth == 1.0:
-            deeper = e.lanes * rest
-        else:
-            deeper = e.lanes * (growth ** min(rest, 200) - 1) / (growth - 1)
-        return (traced + deeper) / camera
-    finally:
-        tracer.max_rays = None
+        return extrapolated_rays(e, tracer.max_depth) / camera
 
 
-def means_and_spread(color, count, spp):
-    """Per pixel of a chunk: the box-filtered mean and the spread of its samples."""
-    return pixel_means(color, count, spp), pixel_spread(color, count, spp)
+def extrapolated_rays(e, max_depth):
+    """The rays of a tree too large to trace (TreeTooLarge ``e``), its growth from the last
+    generation traced to the one refused extrapolated to ``max_depth``."""
+    widths = e.rays_per_generation
+    growth = max(e.lanes / max(widths[-1], 1), 1.0)
+    rest = max_depth - e.depth + 1  # generations e.depth .. max_depth
+    if growth == 1.0:
+        deeper = e.lanes * rest
+    else:
+        deeper = e.lanes * (growth ** min(rest, 200) - 1) / (growth - 1)
+    return sum(widths) + deeper

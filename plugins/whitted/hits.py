@@ -2,12 +2,12 @@
 geometry instead of Mitsuba's per-shape dispatch.
 
 ``scene.ray_intersect`` computes the surface interaction through a virtual call over
-*every* shape of the scene, which Dr.Jit traces once per shape each time (about 0.1 to
-0.2 ms per shape per call, a dozen calls per fit step: seconds at 10^3 shapes). Here a
-hit is found by ``scene.ray_intersect_preliminary`` (the ray tracer only: distance,
-shape, primitive, barycentrics) and the fields the integrator reads -- ``t``, ``p``,
-the geometric normal ``n``, the shading normal ``sh_frame.n``, ``uv``, ``shape``,
-``prim_index`` -- are computed from tables indexed by the shape's registry id:
+*every* shape of the scene, which Dr.Jit traces once per shape each time: a cost that
+grows with the number of shapes, at every call. Here a hit is found by
+``scene.ray_intersect_preliminary`` (the ray tracer only: distance, shape, primitive,
+barycentrics) and the fields the integrator reads -- ``t``, ``p``, the geometric normal
+``n``, the shading normal ``sh_frame.n``, ``uv``, ``shape``, ``prim_index`` -- are
+computed from tables indexed by the shape's registry id:
 
 * meshes: every mesh's faces (offset to the concatenated vertices), positions, vertex
   normals (smooth meshes) and texture coordinates, concatenated on the host, with each
@@ -45,7 +45,7 @@ def sphere_key(shape):
 class _Properties(mi.TraversalCallback):
     """A shape's own properties by name, (value, its C++ type), without recursing into its
     children: ``mi.traverse`` builds a SceneParameters (hashing the JIT ids of each value
-    read), about 15x slower per shape."""
+    read), a cost per shape that reading the properties directly does not have."""
 
     def __init__(self):
         mi.TraversalCallback.__init__(self)
@@ -65,10 +65,10 @@ def shape_property(shape, name):
 
 def sphere_rows(to_world, uv=True):
     """What the table keeps of a sphere of to-world transform ``to_world``, host values of
-    its one-lane entries read one by one (no kernel each; about 0.5 us an entry, so only
-    the entries used): (the translation column, the first column of the linear part --
-    its length is the radius --, the columns of Mitsuba's own world-to-object matrix as
-    4 x 3 nested lists or None without ``uv``). The world-to-object matrix is the
+    its one-lane entries read one by one (no kernel each; only the entries used): (the
+    translation column, the first column of the linear part -- its length is the radius --,
+    the columns of Mitsuba's own world-to-object matrix as 4 x 3 nested lists or None
+    without ``uv``). The world-to-object matrix is the
     transpose of ``inverse_transpose``: its column j holds the first three entries of row
     j of the latter."""
     m = to_world.matrix
@@ -87,9 +87,28 @@ class HitTable:
     (``lift.py``)."""
 
     def __init__(self):
-        self.key = None
-        self.uv = False
-        self.supported = False
+        # What the table is of (see update)
+        self.key = None  # per shape: (registry id, kind, its buffers' JIT ids or the sphere's box)
+        self.buffers = None  # per shape: its mesh buffers, the sphere or None (kept: see update)
+        self.uv = False  # whether the spheres' texture coordinates are computed (to_object read)
+        self.supported = False  # whether every shape is in the table (else Mitsuba's dispatch)
+        # By shape registry id (see build)
+        self.kind = None  # UInt32: the bits MESH, SMOOTH, TEXCOORDS, SPHERE (0: not in the table)
+        self.first = None  # UInt32: the shape's first face (meshes) or row (spheres)
+        self.size = None  # UInt32 (opaque): the tables' length, one past the largest id
+        # The meshes, concatenated
+        self.has_meshes = False  # whether the scene has a mesh in the table
+        self.faces = None  # UInt32: three vertex indices per face (into the concatenated vertices)
+        self.positions = None  # Float: three per vertex
+        self.has_smooth = False  # whether some mesh has vertex normals
+        self.normals = None  # Float: three per vertex, if has_smooth (a flat mesh's: zeros)
+        self.has_texcoords = False  # whether some mesh has texture coordinates
+        self.texcoords = None  # Float: two per vertex, if has_texcoords (others' zeros)
+        # The spheres, by row
+        self.has_spheres = False  # whether the scene has a sphere
+        self.center = None  # Point3f
+        self.radius = None  # Float
+        self.to_object = None  # Float: the world-to-object columns, 4 x 3 per sphere (None: no uv)
 
     # -- the table ---------------------------------------------------------------------------
     def update(self, scene, uv=True):
@@ -176,6 +195,8 @@ class HitTable:
             # columns of the world-to-object transform (its first three rows), 4 x 3 per sphere
             self.to_object = mi.Float(np.array([t for _, _, t in spheres], np.float32).ravel()) \
                 if self.uv else None
+        else:
+            self.center = self.radius = self.to_object = None
 
     # -- the hits ----------------------------------------------------------------------------
     def intersect(self, scene, ray, coherent=False):

@@ -11,64 +11,30 @@ where ``L_local`` comes from the parameters of the surface's ``rayphong`` /
 ``raytextured`` BSDF (read through ``protocol.py``), I(L) from the ``raylight`` emitters and
 T(L), the shadow-ray transmittance, is the product of the refractivity kt of
 every surface the shadow ray crosses on its way to the light (the shaded
-surface itself excluded).
+surface itself excluded). Its parts, one idea per module: the package index
+(``plugins/whitted/__init__.py``).
 
-The pieces, one idea per module:
+A render (:meth:`Whitted.render_array`), step by step: the guard on the output buffer
+(``guards.py``); the probe's estimate of the render's rays (``chunks.probe``), which the
+guards refuse past the memory budget or the time limit; the first pass, traced in chunks
+of camera rays within the memory budget (``chunks.py``) and assembled on the host, the
+image of the one wavefront of ``render_image`` bit for bit; with ``aa`` > 0, adaptive
+anti-aliasing of the pixels that differ from their neighbours (see ``antialias.py``).
 
-* ``camera.py``: which rays leave the camera for each pixel, and the box filter;
-* ``protocol.py``: what the integrator reads from surfaces, lights, background;
-* ``surfaces.py``: the surface table (every surface's parameters by slot), the
-  lights and the background, read from the scene at the start of a render;
-* ``hits.py``: the surface interaction of each hit, by lookup in one table of the
-  scene's geometry;
-* ``lift.py``: where shadow rays leave smooth meshes near their terminator;
-* ``tree.py``: the ray tree, traced generation by generation (a wavefront), with
-  the conventions for directions, normals and entering/leaving decided there;
-* ``chunks.py``: which camera rays are traced together (chunks within a memory
-  budget) and the estimate of a render's size;
-* ``antialias.py``: which pixels adaptive anti-aliasing refines.
-
-**Chunks.** The image is traced in chunks of consecutive pixels (all samples of a pixel
-in one chunk), each chunk's whole ray tree within ``memory_budget``, and assembled on the
-host (numpy), so that memory does not grow with the image: 16384 x 16384 and 4096 x 4096
-at 16 spp fit in a few GB. A pixel's value does not depend on its chunk: the image is
-the same, bit for bit, as the one wavefront of ``render_image``. The adjoint passes are
-chunked the same way: ``render_backward`` re-traces each chunk with AD and
-backpropagates its slice of ``grad_in``; ``render_forward`` propagates each chunk's
-tangents, so a gradient step's memory is bounded too.
-
-**Guards.** Before tracing, a render estimates its rays (a spread-out sample of pixels,
-traced, its tree's growth extrapolated) and refuses (``BudgetError``, one line saying
-why and what would work) an output buffer larger than the memory available, a pixel
-whose tree alone exceeds the budget, or an estimated time beyond ``time_limit``.
-
-**Adaptive anti-aliasing** (``aa`` > 0): a first pass at the render's sampling (one
-sample per pixel: the centre); pixels that differ from one of their 8 neighbours by
-more than ``aa`` (in some channel, linear values) get a stratified 4 x 4 grid, and those
-whose 16 samples still differ by more than 5 ``aa`` an 8 x 8 grid; each pixel is the
-box-filtered average of its last grid. Deterministic; differentiable like the rest: the
-choice of pixels is a detached decision (made by the primal render; the adjoint passes
-re-trace each pixel with the samples its value came from).
-
-When to use which: ``spp`` 1 (the default) is the exact pixel-centre image that numeric
-tests and fits against such a target want; ``aa`` (e.g. 0.02) gives clean edges at a
-fraction of the cost of uniform supersampling, for images to look at; uniform ``spp``
-n^2 treats every pixel alike (a fit to a supersampled target, or a reference).
-
-No atomics and no randomness: the image is bit-for-bit reproducible, and every
-step is differentiable (reverse and forward mode through ``render_backward`` /
-``render_forward``, which re-run the trace with AD enabled). Shadow rays walk
-their crossings detached, in a symbolic loop; the transmittance's derivative
-with respect to kt is attached in closed form (``with_kt_derivative``). A branch
-whose weight is exactly 0 is not traced, so the derivative with respect to kr or
-kt *at* 0 does not see the branch it would open.
+No atomics and no randomness: the image is bit-for-bit reproducible, and every step is
+differentiable: ``render_backward`` / ``render_forward`` re-trace the same chunks with AD
+enabled (so a gradient step's memory is bounded too), each pixel with the samples its
+value came from. Shadow rays walk their crossings detached, in a symbolic loop; the
+transmittance's derivative with respect to kt is attached in closed form
+(``with_kt_derivative``). A branch whose weight is exactly 0 is not traced, so the
+derivative with respect to kr or kt *at* 0 does not see the branch it would open.
 
 Parameters: the render options whose reader is the integrator; their list below, with
 types, defaults and meanings, is made from :class:`raymitsuba.options.RenderOptions`,
 where each is stated.
 """
 
-import os
+from typing import NamedTuple
 
 import drjit as dr
 import mitsuba as mi
@@ -77,52 +43,62 @@ import numpy as np
 from raymitsuba import options
 from raymitsuba.options import RenderOptions
 
-from . import antialias
+from . import antialias, guards
 from .camera import box_filter, camera_rays, pixel_means
-from .chunks import (BYTES_PER_RAY, GIB, BudgetError, Chunker, Job,
-                      means_and_spread, probe)
+from .chunks import Chunker, Job, probe
 from .tree import Tracer
 
 __doc__ += options.describe(options.INTEGRATOR)
 
-RAYS_PER_SECOND = 4e6  # the time guard's figure: rays traced per second (2 CPU cores)
 
+class RenderStats(NamedTuple):
+    """What a render measured (``Whitted.stats``, of the last render)."""
 
-def available_memory():
-    """Bytes of memory available to this process (MemAvailable on Linux; None: unknown)."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return None
+    estimate: guards.Estimate = None  # the guards' estimate (None before any render)
+    chunks: int = 0  # chunks traced
+    rays_traced: int = 0  # rays of every chunk's tree
+    rays_per_generation: list = []  # of the last chunk traced: how many rays each depth traced
 
 
 class Whitted(mi.CppADIntegrator):
     def __init__(self, props):
         super().__init__(props)
-        options = RenderOptions.from_properties(props)  # defaults and ranges: raymitsuba.options
+        options = RenderOptions.from_properties(props)  # defaults, ranges: raymitsuba.options
+        # traces the ray trees (and keeps the scene tables' caches across renders)
         self.tracer = Tracer(options.max_depth, options.max_shadow_crossings, options.bailout)
-        self.aa = options.aa or 0.0
-        self.memory_budget = options.memory_budget
+        self.aa = options.aa or 0.0  # the adaptive anti-aliasing threshold (0: off)
+        self.memory_budget = options.memory_budget  # bytes one chunk's ray tree may take
+        # seconds of estimated render time past which a render is refused (0: no limit)
         self.time_limit = options.time_limit
         self.chunk_pixels = options.chunk_pixels or None  # at most this many pixels a chunk
         self.progress = None  # optional callable(pixels_done, pixels_total, chunks_done)
-        self.chunks = 0  # of the last render
-        self.rays_traced = 0  # of the last render: rays of every chunk's tree
-        self.estimated_rays = None  # of the last render: the guard's estimate
-        self._plan = None  # the last primal render's anti-aliasing decisions
+        self.stats = RenderStats()  # of the last render (also of a refused one: its estimate)
+        # The anti-aliasing decisions of the last primal render (antialias.Plan; None: none
+        # yet), which the adjoint passes of the same image follow
+        self.plan = None
 
     @property
     def max_depth(self):
         return self.tracer.max_depth
 
+    # -- the last render's figures (stats) -------------------------------------------------------
+    @property
+    def chunks(self):
+        return self.stats.chunks
+
+    @property
+    def rays_traced(self):
+        return self.stats.rays_traced
+
+    @property
+    def estimated_rays(self):
+        """The guards' estimate of the rays of the last render (None: no render yet)."""
+        return None if self.stats.estimate is None else self.stats.estimate.rays
+
     @property
     def rays_per_generation(self):
         """Of the last chunk traced: how many rays each depth traced."""
-        return self.tracer.rays_per_generation
+        return self.stats.rays_per_generation
 
     # -- mi.Integrator interface ---------------------------------------------------------------
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
@@ -132,8 +108,8 @@ class Whitted(mi.CppADIntegrator):
     def render_forward(self, scene, params, sensor=0, seed=0, spp=0):
         sensor, spp, width, height = self._setup(scene, sensor, spp)
         grads = np.zeros((width * height, 3), np.float32)
-        jobs = self._jobs(scene, sensor, spp)
-        chunker = self._chunker(scene, sensor, spp)
+        jobs = self._adjoint_jobs(scene, sensor, spp, width, height)
+        chunker = self._adjoint_chunker(scene, sensor)
         for j, (job, _) in enumerate(jobs):
             last_job = j == len(jobs) - 1
 
@@ -152,12 +128,12 @@ class Whitted(mi.CppADIntegrator):
 
     def render_backward(self, scene, params, grad_in, sensor=0, seed=0, spp=0):
         sensor, spp, width, height = self._setup(scene, sensor, spp)
-        chunker = self._chunker(scene, sensor, spp)
+        chunker = self._adjoint_chunker(scene, sensor)
         grad_in = mi.Float(dr.detach(grad_in.array if isinstance(grad_in, mi.TensorXf)
                                      else mi.TensorXf(grad_in).array))
-        for job, masked in self._jobs(scene, sensor, spp):
+        for job, weights in self._adjoint_jobs(scene, sensor, spp, width, height):
             # pixels refined later take their value (and their gradient) from a later job
-            grad = grad_in if masked is None else grad_in * mi.Float(np.repeat(masked, 3))
+            grad = grad_in if weights is None else grad_in * mi.Float(np.repeat(weights, 3))
 
             def visit(start, count, color, job=job, grad=grad):
                 with dr.resume_grad():
@@ -176,51 +152,23 @@ class Whitted(mi.CppADIntegrator):
         (not with anti-aliasing, which needs the whole first pass)."""
         with dr.suspend_grad():
             sensor, spp, width, height = self._setup(scene, sensor, spp)
-            self.check(width, height, spp, assemble=store is None or self.aa > 0)
+            assemble = store is None or self.aa > 0
+            guards.check_image(width, height, self.memory_budget, assemble)
             terms = self.tracer.scene_terms(scene)
-            ratio = probe(self.tracer, scene, sensor, width, height, spp, terms)
-            self.estimated_rays = ratio * width * height * spp
-            self.check_time(width, height, spp)
-            total = [width * height]
-            chunker = Chunker(self.tracer, scene, sensor, self.memory_budget, ratio,
-                              self._progress(total), terms, self.chunk_pixels)
-            image = None
-            if store is None or self.aa > 0:
-                image = np.empty((width * height, 3), np.float32)
-
-                def store(first, values):  # noqa: F811 (the default: assemble)
-                    image[first:first + len(values)] = values
-
-            def visit(start, count, color):
-                store(start, dr.ravel(pixel_means(color, count, spp)).numpy().reshape(-1, 3))
-
-            chunker.run(Job(width, height, spp), visit)
-            plan = []
+            estimate = self._estimate(scene, sensor, width, height, spp, terms)
+            self.stats = RenderStats(estimate)  # (its estimate is read even if refused)
+            estimate.admit(width * height, spp)  # the first pass
+            chunker = Chunker(self.tracer, scene, sensor, self.memory_budget,
+                              estimate.rays_per_camera_ray, self.progress, terms,
+                              self.chunk_pixels)
+            image = np.empty((width * height, 3), np.float32) if assemble else None
+            first_pass(chunker, Job(width, height, spp), assemble_into(image) if assemble
+                       else store)
             if self.aa > 0:
-                candidates = np.flatnonzero(antialias.contrast_mask(
-                    image.reshape(height, width, 3), self.aa)).astype(np.uint32)
-                for n in antialias.LEVELS:
-                    if len(candidates) == 0:
-                        break
-                    total[0] += len(candidates)
-                    # the refinement's rays, now that its pixels are known, count too
-                    self.estimated_rays += ratio * len(candidates) * n * n
-                    self.check_time(width, height, spp)
-                    job = Job(width, height, n * n, pixels=candidates)
-                    spread = np.empty(len(candidates), np.float32)
-
-                    def visit_refined(start, count, color, job=job, spread=spread):
-                        means, spreads = means_and_spread(color, count, job.spp)
-                        image[job.pixels[start:start + count]] = \
-                            dr.ravel(means).numpy().reshape(-1, 3)
-                        spread[start:start + count] = spreads.numpy()
-
-                    chunker.run(job, visit_refined)
-                    plan.append((candidates, n))
-                    candidates = candidates[spread > antialias.AGAIN * self.aa]
-            self._plan = ((id(scene), width, height, spp, self.aa), plan)
-            self.chunks = chunker.chunks_done
-            self.rays_traced = chunker.rays_traced
+                self.plan = antialias.refine(image.reshape(height, width, 3), spp, self.aa,
+                                             chunker, estimate)
+            self.stats = RenderStats(estimate, chunker.chunks_done, chunker.rays_traced,
+                                     chunker.rays_per_generation)
             return None if image is None else image.reshape(height, width, 3)
 
     def render_image(self, scene, sensor=0, spp=0):
@@ -228,41 +176,10 @@ class Whitted(mi.CppADIntegrator):
         (differentiable when called with AD enabled): the reference the chunked render
         matches bit for bit, for images small enough."""
         sensor, spp, width, height = self._setup(scene, sensor, spp)
-        color = self.tracer.trace(scene, camera_rays(sensor, width, height, spp))
-        return box_filter(color, width, height, spp)
-
-    # -- guards ----------------------------------------------------------------------------------
-    def check(self, width, height, spp, assemble=True):
-        """Refuse (BudgetError) an image whose output buffer cannot be held."""
-        if width * height * 3 >= 1 << 32:
-            raise BudgetError(f"{width} x {height} is too large for one image "
-                              "(over 2^32 values); render it in tiles with a smaller size")
-        if not assemble:
-            return
-        need = width * height * 3 * 4 * 2  # the float32 image (and its copy as a tensor)
-        available = available_memory()
-        if available is not None and need + min(self.memory_budget, available // 2) > available:
-            raise BudgetError(f"a {width} x {height} float image needs {need / GIB:.1f} GB "
-                              f"and only {available / GIB:.1f} GB is available: render a "
-                              "smaller image, or to an 8-bit .png without --aa")
-
-    def check_time(self, width, height, spp):
-        """Refuse (BudgetError) a render whose estimated time is beyond ``time_limit``, or
-        whose average pixel's ray tree alone exceeds the memory budget."""
-        pixel = self.estimated_rays / (width * height) * BYTES_PER_RAY
-        if pixel > self.memory_budget:
-            raise BudgetError(
-                f"depth {self.max_depth} at {spp} spp: the ray tree of a pixel needs about "
-                f"{pixel / GIB:.3g} GB, over the memory budget ({self.memory_budget / GIB:.3g} "
-                "GB): lower --max-depth or --spp, add a --bailout (e.g. 1e-3), or raise "
-                "--memory-budget")
-        seconds = self.estimated_rays / RAYS_PER_SECOND
-        if self.time_limit > 0 and seconds > self.time_limit:
-            raise BudgetError(
-                f"{width} x {height} at {spp} spp, depth {self.max_depth}: about "
-                f"{self.estimated_rays:.3g} rays, an estimated {_duration(seconds)} "
-                f"(over the {_duration(self.time_limit)} limit): lower the size, --spp or "
-                "--max-depth, add a --bailout, or raise --time-limit")
+        trace = self.tracer.trace(scene, camera_rays(sensor, width, height, spp),
+                                  self.tracer.scene_terms(scene))
+        self.stats = self.stats._replace(rays_per_generation=trace.rays_per_generation)
+        return box_filter(trace.color, width, height, spp)
 
     # -- helpers -------------------------------------------------------------------------------
     def _setup(self, scene, sensor, spp):
@@ -272,42 +189,42 @@ class Whitted(mi.CppADIntegrator):
         width, height = sensor.film().crop_size()
         return sensor, spp, width, height
 
-    def _progress(self, total):
-        if self.progress is None:
-            return None
-        return lambda done, chunks: self.progress(done, total[0], chunks)
+    def _estimate(self, scene, sensor, width, height, spp, terms):
+        """The guards' estimate of a render, from the probe's rays per camera ray (no job
+        admitted yet)."""
+        return guards.Estimate(probe(self.tracer, scene, sensor, width, height, spp, terms),
+                               width, height, spp, max_depth=self.max_depth,
+                               memory_budget=self.memory_budget, time_limit=self.time_limit)
 
-    def _chunker(self, scene, sensor, spp):
+    def _adjoint_chunker(self, scene, sensor):
         return Chunker(self.tracer, scene, sensor, self.memory_budget,
                        max_pixels=self.chunk_pixels)
 
-    def _jobs(self, scene, sensor, spp):
-        """The adjoint passes' jobs: (job, mask of the pixels it gives the value of, or None)."""
-        _, spp, width, height = self._setup(scene, sensor, spp)
-        plan = []
-        if self.aa > 0:
-            key = (id(scene), width, height, spp, self.aa)
-            if self._plan is None or self._plan[0] != key:
-                self.render_array(scene, sensor, spp)
-            plan = self._plan[1]
-        if not plan:
+    def _adjoint_jobs(self, scene, sensor, spp, width, height):
+        """The adjoint passes' jobs: the primal render's, each with the weights of the pixels
+        it gives the value of (None: all its pixels; see antialias.Plan.adjoint_jobs)."""
+        if self.aa <= 0:
             return [(Job(width, height, spp), None)]
-        refined = np.zeros(width * height, bool)
-        refined[plan[0][0]] = True
-        jobs = [(Job(width, height, spp), (~refined).astype(np.float32))]
-        for k, (pixels, n) in enumerate(plan):
-            later = np.zeros(width * height, bool)
-            if k + 1 < len(plan):
-                later[plan[k + 1][0]] = True
-            final = pixels[~later[pixels]]
-            if len(final):
-                jobs.append((Job(width, height, n * n, pixels=final), None))
-        return jobs
+        if self.plan is None or not self.plan.is_for(sensor, width, height, spp, self.aa):
+            # No plan of this image: the adjoint pass is not after its primal render (e.g.
+            # render_backward called by itself). The primal is rendered again, deliberately:
+            # the adjoint must re-trace each pixel with the samples its value came from.
+            self.render_array(scene, sensor, spp)
+        return self.plan.adjoint_jobs()
 
 
-def _duration(seconds):
-    if seconds < 120:
-        return f"{seconds:.0f} s"
-    if seconds < 7200:
-        return f"{seconds / 60:.0f} min"
-    return f"{seconds / 3600:.1f} h"
+def assemble_into(image):
+    """A ``store`` that writes each chunk's pixels into ``image`` ((H * W, 3))."""
+    def store(first, values):
+        image[first:first + len(values)] = values
+
+    return store
+
+
+def first_pass(chunker, job, store):
+    """Trace ``job`` through ``chunker``, each chunk's box-filtered pixels handed to
+    ``store(first_pixel, values)``."""
+    def visit(start, count, color):
+        store(start, dr.ravel(pixel_means(color, count, job.spp)).numpy().reshape(-1, 3))
+
+    chunker.run(job, visit)

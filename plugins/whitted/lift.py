@@ -23,7 +23,7 @@ from .hits import SMOOTH
 def lifted_point(table, si, active):
     """The start of the shadow rays of each hit near a terminator (None: the scene has no
     smooth mesh). ``table``: the scene's HitTable."""
-    if not getattr(table, "has_smooth", False):
+    if not table.has_smooth:
         return None
     shape_id = dr.reinterpret_array(mi.UInt32, si.shape)
     active = active & (shape_id < table.size)

@@ -1,60 +1,81 @@
 """The interface between the Whitted integrator and the plugins it reads, decided here once.
 
 The integrator never dispatches a virtual call per hit: at the start of a render it
-reads every surface and light of the scene through the members below, builds its
-tables (``surfaces.py``) and shades from them. :func:`check_surface` and
-:func:`check_emitter` run then, once per plugin, and name a plugin that does not
-provide its part.
+reads every surface and light of the scene through the members that the classes below
+declare, builds its tables (``surfaces.py``) and shades from them. :func:`check_surface`
+and :func:`check_emitter` run then, once per plugin, and name a plugin that does not
+provide its part; the names they check are the classes' own (:func:`members`).
 
-**A surface** (the BSDF of every shape of the scene; ``rayphong``, ``raytextured``):
-
-* ``material``: the object that owns the surface's shading parameters, one
-  attribute per name of :data:`SURFACE_PARAMETERS`: ``color`` (mi.Color3f) and the
-  floats ka, kd, ks, n, kr, kt, eta (mi.Float), each of width 1 (see ``phong.py``
-  for their meaning). Surfaces that share a material share these very objects, so
-  they share their values and their gradients.
-  The material also keeps ``host_values``: the same values as a tuple of Python floats
-  (r, g, b, ka, kd, ks, n, kr, kt, eta), current after every ``SceneParameters.update``.
-* ``checker_size`` (float): > 0: the base color is multiplied by the .RAY
-  checkerboard of squares of this side (``checkerboard.checker``); 0: no checkerboard.
-* ``image_textures`` (tuple of mi.Texture): each ``texture.eval(si)`` multiplies
-  the base color, in order, before the checkerboard.
-
-**A light** (``raylight``): ``is_ambient`` (bool); ``color`` (mi.Color3f), the
-ambient term's intensity; ``illuminate(p) -> (wi, dist, intensity)`` for a
-non-ambient light (see ``light.py``).
-
-**A background** (``raybackground``): ``background_color`` (mi.Color3f), the color
-of every ray that hits nothing.
-
-Every emitter of the scene must be a light or a background.
+* :class:`Surface`: the BSDF of every shape of the scene (``rayphong``, ``raytextured``),
+  with its :class:`SurfaceMaterial`;
+* :class:`Light` (``raylight``) and :class:`Background` (``raybackground``): every emitter
+  of the scene is one or the other.
 """
 
+from __future__ import annotations
+
+import inspect
+from collections.abc import Mapping
 from typing import Protocol, runtime_checkable
 
-from ..phong import FLOAT_PARAMS
+from raymitsuba.model import Material
 
-SURFACE_PARAMETERS = ("color",) + tuple(FLOAT_PARAMS)
+# The shading parameters of a surface, by name: ``color``, then the floats ka, kd, ks, n, kr,
+# kt, eta; the scene model's list of a .RAY material's fields (meanings: ``phong.py``).
+SURFACE_PARAMETERS = Material.FIELDS
 
 
 @runtime_checkable
 class Surface(Protocol):
-    material: object
-    checker_size: float
-    image_textures: tuple
+    """A surface: what the integrator reads from the BSDF of a shape."""
+
+    material: SurfaceMaterial  # owns the shading parameters (shared by the surfaces that share it)
+    checker_size: float  # > 0: the base color times the checkerboard of this square side; 0: none
+    image_textures: tuple  # of mi.Texture: each eval(si) multiplies the base color, in order
+
+
+class SurfaceMaterial(Protocol):
+    """The owner of a surface's shading parameters: one attribute per name of
+    :data:`SURFACE_PARAMETERS` (``color`` a mi.Color3f, the others mi.Float, each of width 1),
+    and these.
+
+    Surfaces that share a material share these very objects, so they share their values and
+    their gradients. The base color C is ``color`` times the surface's image textures, in
+    order, times its checkerboard (``checkerboard.checker``)."""
+
+    # The parameters' values by name, as Python floats (``color``: (r, g, b)), current after
+    # every ``SceneParameters.update``: a render reads them without a Dr.Jit read per value.
+    host_values: Mapping[str, float | tuple[float, float, float]]
 
 
 @runtime_checkable
 class Light(Protocol):
-    is_ambient: bool
-    color: object
+    """A light: ambient (its ``color`` is added to the ambient term) or not (``illuminate``)."""
 
-    def illuminate(self, p): ...
+    is_ambient: bool
+    color: object  # mi.Color3f: the ambient term's intensity
+
+    def illuminate(self, p):
+        """(wi, dist, intensity) at the points ``p``, for a light that is not ambient (see
+        ``light.py``)."""
 
 
 @runtime_checkable
 class Background(Protocol):
-    background_color: object
+    """The background: the color of every ray that hits nothing."""
+
+    background_color: object  # mi.Color3f
+
+
+def members(protocol):
+    """The names ``protocol`` declares, in order: its attributes, then its methods."""
+    methods = [name for name, value in vars(protocol).items()
+               if inspect.isfunction(value) and not name.startswith("_")]
+    return tuple(inspect.get_annotations(protocol)) + tuple(methods)
+
+
+# What a surface's material provides: the parameters, then SurfaceMaterial's own members.
+MATERIAL_MEMBERS = SURFACE_PARAMETERS + members(SurfaceMaterial)
 
 
 class InterfaceError(TypeError):
@@ -76,11 +97,11 @@ def missing(plugin, names):
 
 
 def check_surface(bsdf, shape=None):
-    """``bsdf``, unchanged, if it provides the surface interface; else an InterfaceError."""
-    lacking = missing(bsdf, ("material", "checker_size", "image_textures"))
+    """``bsdf``, unchanged, if it provides :class:`Surface` (and its material
+    :class:`SurfaceMaterial`); else an InterfaceError (naming ``shape``, if given)."""
+    lacking = missing(bsdf, members(Surface))
     if not lacking:
-        lacking = [f"material.{name}"
-                   for name in missing(bsdf.material, SURFACE_PARAMETERS + ("host_values",))]
+        lacking = [f"material.{name}" for name in missing(bsdf.material, MATERIAL_MEMBERS)]
     if lacking:
         where = f" (the BSDF of shape {describe(shape)})" if shape is not None else ""
         raise InterfaceError(
@@ -91,13 +112,13 @@ def check_surface(bsdf, shape=None):
 
 
 def check_emitter(emitter):
-    """'light' or 'background' for an emitter that provides that interface; else an
-    InterfaceError."""
+    """'light' or 'background' for an emitter that provides :class:`Light` or
+    :class:`Background`; else an InterfaceError."""
     if isinstance(emitter, Light):
         return "light"
     if isinstance(emitter, Background):
         return "background"
     raise InterfaceError(
-        f"raywhitted: the emitter {describe(emitter)} is neither a raymitsuba light (is_ambient, "
-        f"color, illuminate) nor a background (background_color) (see plugins/whitted/protocol.py; use "
-        f"raylight or raybackground)")
+        f"raywhitted: the emitter {describe(emitter)} is neither a raymitsuba light "
+        f"({', '.join(members(Light))}) nor a background ({', '.join(members(Background))}) "
+        f"(see plugins/whitted/protocol.py; use raylight or raybackground)")

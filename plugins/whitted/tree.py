@@ -18,6 +18,8 @@ Conventions, decided here once:
   a ray beyond that adds nothing.
 """
 
+from typing import NamedTuple
+
 import drjit as dr
 import mitsuba as mi
 
@@ -48,18 +50,20 @@ def refract(v, n, eta_ratio):
 
 
 class Generation:
-    """One depth of the ray tree, as the trace leaves it.
+    """One depth of the ray tree, as the trace leaves it (one lane per ray of this depth).
 
-    Per lane (one lane per ray of this depth): ``local`` (L_local, or the
-    background on a miss), the weights of the reflected and refracted children
-    and, where a child exists (``has_r`` / ``has_t``), its lane in the next
-    generation (``child_r`` / ``child_t``).
-    """
+    Where a lane has a reflected (refracted) child, ``has_r`` (``has_t``), the child is at
+    lane ``child_r`` (``child_t``) of the next generation; without any child in the
+    generation, the children's fields stay None."""
 
     def __init__(self, local):
-        self.local = local
-        self.weight_r = self.child_r = self.has_r = None
-        self.weight_t = self.child_t = self.has_t = None
+        self.local = local  # Color3f: L_local, or the background on a miss
+        self.weight_r = None  # Float: the reflected child's weight (kr, + kt on total reflection)
+        self.has_r = None  # Bool: whether the lane has a reflected child
+        self.child_r = None  # UInt32: the reflected child's lane in the next generation
+        self.weight_t = None  # Float: the refracted child's weight (kt; 0 on total reflection)
+        self.has_t = None  # Bool: whether the lane has a refracted child
+        self.child_t = None  # UInt32: the refracted child's lane in the next generation
 
     @property
     def has_children(self):
@@ -83,13 +87,21 @@ class Step:
         self.reflected, self.refracted = rays if rays else (None, None)
 
 
-class TreeTooLarge(Exception):
-    """The ray tree would hold more than ``Tracer.max_rays`` rays (generation ``depth``,
-    of ``lanes`` rays, would take it past)."""
+class Trace(NamedTuple):
+    """What :meth:`Tracer.trace` returns."""
 
-    def __init__(self, depth, lanes):
+    color: mi.Color3f  # of each ray of the batch (one lane per ray), through its whole tree
+    rays_per_generation: list  # how many rays each depth traced (the first: the batch)
+
+
+class TreeTooLarge(Exception):
+    """The ray tree would hold more rays than ``max_rays`` (generation ``depth``, of
+    ``lanes`` rays, would take it past); ``rays_per_generation``: the generations traced."""
+
+    def __init__(self, depth, lanes, rays_per_generation):
         super().__init__(f"generation {depth} of the ray tree has {lanes} rays")
         self.depth, self.lanes = depth, lanes
+        self.rays_per_generation = rays_per_generation
 
 
 class Tracer:
@@ -99,38 +111,33 @@ class Tracer:
     ray that crosses more transparent surfaces than this is taken as blocked;
     ``min_weight``: a child whose path weight (the product of the kr / kt weights from
     the camera ray down to it) is not above this is not traced (0: every child of
-    weight > 0, the exact tree); ``max_rays``: a tree of more rays than this raises
-    :class:`TreeTooLarge` (None: no limit); ``progress``: optional callable(generations_done).
+    weight > 0, the exact tree).
     """
 
     def __init__(self, max_depth, max_shadow_crossings, min_weight):
-        self.max_depth = max_depth
-        self.max_shadow_crossings = max_shadow_crossings
-        self.min_weight = min_weight
-        self.max_rays = None
-        self.progress = None
-        self.rays_per_generation = []  # of the last trace: how many rays each depth traced
-        self.geometry = HitTable()  # the scene's geometry by shape id, kept across renders
-        self.last_terms = None  # of the last render (see scene_terms)
+        self.max_depth = max_depth  # bounces after the first generation
+        self.max_shadow_crossings = max_shadow_crossings  # past this many, a shadow ray is blocked
+        self.min_weight = min_weight  # the bailout: children of path weight <= this are not traced
+        # Caches across renders, each keyed by the scene's shapes (see scene_terms):
+        self.geometry = HitTable()  # the geometry table: rebuilt when the shapes change
+        self.surfaces = None  # the last surface table: its layout serves the same shapes again
 
     def scene_terms(self, scene):
         """What shading needs from ``scene`` (its SceneTerms, with the geometry table), built
         once per render and shared by its chunks."""
         with no_cyclic_gc():  # a Python pass over every shape and surface
-            terms = SceneTerms(scene, self.last_terms)
-            terms.geometry = self.geometry.update(scene, uv=terms.surfaces.uses_uv)
-        self.last_terms = terms  # its surface layout is reused by the next render
+            terms = SceneTerms(scene, self.surfaces, self.geometry)
+        self.surfaces = terms.surfaces
         return terms
 
-    def trace(self, scene, ray, terms=None):
-        """The color of each ray of ``ray`` (one lane per ray) through its whole tree
-        (``terms``: from :meth:`scene_terms`, if already built)."""
-        terms = self.scene_terms(scene) if terms is None else terms
+    def trace(self, scene, ray, terms, max_rays=None):
+        """The :class:`Trace` of each ray of ``ray`` (one lane per ray) through its whole
+        tree, with the scene's ``terms`` (from :meth:`scene_terms`). ``max_rays``: a tree of
+        more rays than this raises :class:`TreeTooLarge` (None: no limit)."""
         path_weight = mi.Float(1.0) if self.min_weight > 0 else None
-        generations = []
-        self.rays_per_generation = []
+        generations, rays_per_generation = [], []
         for depth in range(self.max_depth + 1):
-            self.rays_per_generation.append(dr.width(ray))
+            rays_per_generation.append(dr.width(ray))
             last = depth == self.max_depth
             step = self.step(scene, terms, ray, depth, not last)
             generation = Generation(step.local)
@@ -138,23 +145,19 @@ class Tracer:
             if last:
                 break
             ray, path_weight = self.spawn(generation, step, path_weight)
-            if self.progress is not None:
-                self.progress(depth + 1)
             if ray is None:
                 break
-            if self.max_rays is not None and \
-                    sum(self.rays_per_generation) + dr.width(ray) > self.max_rays:
-                raise TreeTooLarge(depth + 1, dr.width(ray))
+            if max_rays is not None and sum(rays_per_generation) + dr.width(ray) > max_rays:
+                raise TreeTooLarge(depth + 1, dr.width(ray), rays_per_generation)
 
         color = None
         for generation in reversed(generations):
             color = generation.subtree_color(color)
             dr.eval(color)  # once for all three channels: the next step gathers from each
-        return color
+        return Trace(color, rays_per_generation)
 
     def step(self, scene, terms, ray, depth, children):
-        """Intersect and shade ``ray``; with ``children``, also the children's weights and rays.
-"""
+        """Intersect and shade ``ray``; with ``children``, also the children's weights and rays."""
         si = self.intersect(scene, terms.geometry, ray, coherent=(depth == 0))
         hit = si.is_valid()
         surfaces = terms.surfaces
@@ -177,7 +180,7 @@ class Tracer:
 
     def intersect(self, scene, geometry, ray, coherent):
         """The surface interaction of each ray: by lookup in the geometry table (see
-        _hits.py), or, for a scene with shapes the table does not know, through Mitsuba's
+        hits.py), or, for a scene with shapes the table does not know, through Mitsuba's
         dispatch (the shapes' own parameters detached: they are not the renderer's)."""
         if geometry.supported:
             return geometry.intersect(scene, ray, coherent)
@@ -200,7 +203,7 @@ class Tracer:
         ks = surfaces.get("specular_mix", slot, hit)
         exponent = surfaces.get("phong_coeff", slot, hit)
         n, v = self.facing_normal(si, ray), -ray.d
-        lifted = lifted_point(terms.geometry, si, hit)  # see _lift.py
+        lifted = lifted_point(terms.geometry, si, hit)  # see lift.py
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
@@ -212,7 +215,7 @@ class Tracer:
     def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None):
         """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
         ray = si.spawn_ray(wi)
-        if lifted is not None:  # see _lift.py
+        if lifted is not None:  # see lift.py
             terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
             ray.o = dr.select(terminator, lifted, ray.o)
         ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)

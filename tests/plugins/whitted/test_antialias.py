@@ -75,7 +75,7 @@ def test_a_half_covered_pixel_converges_to_half_and_flat_pixels_stay_at_one_samp
     np.testing.assert_array_equal(image[:, centre + 1:], 0.0)
     # refined: the two columns on either side of the step the first pass saw; again (8x8):
     # only the edge column, whose 4x4 samples still differ
-    (first, n1), (second, n2) = loaded.integrator._plan[1]
+    (first, n1), (second, n2) = loaded.integrator.plan.levels
     columns = np.unique(first % width).astype(int)
     assert len(first) == 2 * height and centre in columns and len(columns) == 2
     assert abs(columns[0] - columns[1]) == 1
@@ -104,7 +104,7 @@ def test_gradients_with_antialiasing_match_finite_differences(mi, scene, key):
     loaded = raymitsuba.load(tg.SCENES[scene], width=tg.SIZE, height=tg.SIZE, aa=0.02)
     loaded.integrator.chunk_pixels = 11
     finite, reverse, forward = tg.derivatives(mi, loaded, key, tg.seed_of(scene, key, "aa"))
-    assert loaded.integrator._plan[1], "nothing was refined: the test would be vacuous"
+    assert loaded.integrator.plan.levels, "nothing was refined: the test would be vacuous"
     assert abs(finite) > 0.1
     assert abs(reverse - finite) <= tg.REL_FD * abs(finite), (finite, reverse)
     assert abs(forward - finite) <= tg.REL_FD * abs(finite), (finite, forward)
@@ -113,8 +113,7 @@ def test_gradients_with_antialiasing_match_finite_differences(mi, scene, key):
 
 def test_the_refinement_counts_in_the_time_guard(mi):
     import raymitsuba
-    from raymitsuba.plugins.whitted import chunks
-    from raymitsuba.plugins.whitted import integrator as whitted
+    from raymitsuba.plugins.whitted import guards
 
     loaded = raymitsuba.load("scenes/whitted.ray", width=64, height=48, aa=0.02)
     integrator = loaded.integrator
@@ -124,6 +123,6 @@ def test_the_refinement_counts_in_the_time_guard(mi):
     plain.integrator.render_array(plain.scene)
     assert with_refinement > 2 * plain.integrator.estimated_rays
     # a limit between the two: the first pass is allowed, the refinement refused
-    integrator.time_limit = 1.5 * plain.integrator.estimated_rays / whitted.RAYS_PER_SECOND
-    with pytest.raises(chunks.BudgetError, match="--time-limit"):
+    integrator.time_limit = 1.5 * plain.integrator.estimated_rays / guards.RAYS_PER_SECOND
+    with pytest.raises(guards.BudgetError, match="--time-limit"):
         integrator.render_array(loaded.scene)

@@ -54,7 +54,8 @@ def test_chunked_and_unchunked_renders_are_bit_identical(mi, scene, spp):
 
 def test_a_tree_larger_than_the_budget_is_traced_again_in_halves(mi, monkeypatch):
     import raymitsuba
-    from raymitsuba.plugins.whitted import chunks
+    from raymitsuba.plugins.whitted import chunks, guards
+    from raymitsuba.plugins.whitted.camera import pixel_means
 
     monkeypatch.setattr(chunks, "MIN_CHUNK_RAYS", 1)
     loaded = raymitsuba.load(GLASS, width=32, height=24, spp=1, max_depth=8)
@@ -62,7 +63,7 @@ def test_a_tree_larger_than_the_budget_is_traced_again_in_halves(mi, monkeypatch
     integrator = loaded.integrator
     sensor = loaded.scene.sensors()[0]
     # 600 rays at most: the first chunk, sized for 1 ray per camera ray, is too large
-    chunker = chunks.Chunker(integrator.tracer, loaded.scene, sensor, 600 * chunks.BYTES_PER_RAY,
+    chunker = chunks.Chunker(integrator.tracer, loaded.scene, sensor, 600 * guards.BYTES_PER_RAY,
                               rays_per_camera_ray=1.0)
     image = np.empty((32 * 24, 3), np.float32)
     largest = []
@@ -70,8 +71,8 @@ def test_a_tree_larger_than_the_budget_is_traced_again_in_halves(mi, monkeypatch
     def visit(start, count, color):
         import drjit as dr
 
-        largest.append(sum(integrator.tracer.rays_per_generation))
-        image[start:start + count] = dr.ravel(chunks.pixel_means(color, count, 1)).numpy().reshape(-1, 3)
+        largest.append(sum(chunker.rays_per_generation))  # this chunk's tree
+        image[start:start + count] = dr.ravel(pixel_means(color, count, 1)).numpy().reshape(-1, 3)
 
     chunker.run(chunks.Job(32, 24, 1), visit)
     assert max(largest) <= 600 and chunker.chunks_done > 32 * 24 * 2 / 600
@@ -80,12 +81,12 @@ def test_a_tree_larger_than_the_budget_is_traced_again_in_halves(mi, monkeypatch
 
 def test_a_pixel_whose_tree_exceeds_the_budget_is_refused(mi, monkeypatch):
     import raymitsuba
-    from raymitsuba.plugins.whitted import chunks
+    from raymitsuba.plugins.whitted import chunks, guards
 
     monkeypatch.setattr(chunks, "MIN_CHUNK_RAYS", 1)
     loaded = raymitsuba.load(GLASS, width=16, height=12, max_depth=30, time_limit=0,
-                             memory_budget=20 * chunks.BYTES_PER_RAY)
-    with pytest.raises(chunks.BudgetError, match="ray tree of (one|a) pixel.*--bailout"):
+                             memory_budget=20 * guards.BYTES_PER_RAY)
+    with pytest.raises(guards.BudgetError, match="ray tree of (one|a) pixel.*--bailout"):
         loaded.integrator.render_array(loaded.scene)
 
 
@@ -111,18 +112,18 @@ def test_the_probe_estimates_the_rays_per_camera_ray(mi):
 
 
 def test_the_probe_extrapolates_a_tree_too_large_to_trace(mi, monkeypatch):
-    from raymitsuba.plugins.whitted import chunks
+    from raymitsuba.plugins.whitted import chunks, guards
     import raymitsuba
 
     # 1.2x more rays per generation: about 6e5 rays per pixel, 2e9 for the image
     monkeypatch.setattr(chunks, "PROBE_RAYS", 20000)
     loaded = raymitsuba.load(GLASS, width=64, height=48, max_depth=64, time_limit=60)
-    with pytest.raises(chunks.BudgetError, match="about .* rays, an estimated .* min .*--bailout"):
+    with pytest.raises(guards.BudgetError, match="about .* rays, an estimated .* min .*--bailout"):
         loaded.integrator.render_array(loaded.scene)
     assert 3e8 < loaded.integrator.estimated_rays < 3e10
     loaded = raymitsuba.load(GLASS, width=64, height=48, max_depth=64, time_limit=0,
                              memory_budget=1 << 24)
-    with pytest.raises(chunks.BudgetError, match="the ray tree of a pixel needs"):
+    with pytest.raises(guards.BudgetError, match="the ray tree of a pixel needs"):
         loaded.integrator.render_array(loaded.scene)
 
 
@@ -173,17 +174,17 @@ def test_gradients_do_not_depend_on_the_chunks(mi):
 
 def test_the_output_buffer_guard(mi, monkeypatch):
     import raymitsuba
-    from raymitsuba.plugins.whitted import chunks, integrator
+    from raymitsuba.plugins.whitted import guards
 
     loaded = load_ray("sphere\n", 64, 64)
-    monkeypatch.setattr(integrator, "available_memory", lambda: 40_000)
-    with pytest.raises(chunks.BudgetError, match="64 x 64 float image needs"):
+    monkeypatch.setattr(guards, "available_memory", lambda: 40_000)
+    with pytest.raises(guards.BudgetError, match="64 x 64 float image needs"):
         loaded.integrator.render_array(loaded.scene)
     # chunk by chunk into the caller's buffer: nothing to assemble, nothing refused
     stored = []
     assert loaded.integrator.render_array(loaded.scene,
                                           store=lambda first, v: stored.append(len(v))) is None
     assert sum(stored) == 64 * 64
-    with pytest.raises(chunks.BudgetError, match="2\\^32"):
-        loaded.integrator.check(65536, 32768, 1)
+    with pytest.raises(guards.BudgetError, match="2\\^32"):
+        guards.check_image(65536, 32768, loaded.integrator.memory_budget)
     del raymitsuba

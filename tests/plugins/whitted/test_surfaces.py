@@ -56,7 +56,7 @@ def test_one_slot_per_distinct_bsdf(mitsuba, scene):
     from raymitsuba.plugins.whitted.surfaces import Surfaces
 
     surfaces = Surfaces(scene)
-    assert surfaces.count == 3
+    assert surfaces.layout.count == 3
     slots = slots_of_shapes(mitsuba, scene, surfaces)
     assert slots[0] == slots[1]  # s0 and s1 share the BSDF matA
     assert sorted(set(slots)) == [0, 1, 2]
@@ -171,7 +171,7 @@ def test_a_scene_without_objects_has_slots_of_zeros(mitsuba):
     from raymitsuba.plugins.whitted.surfaces import Surfaces
 
     surfaces = Surfaces(mitsuba.load_dict({"type": "scene"}))
-    assert surfaces.count == 0 and not surfaces.any_transparent
+    assert surfaces.layout.count == 0 and not surfaces.any_transparent
     assert not np.any(np.array(surfaces.diffuse_mix))
 
 
@@ -188,7 +188,8 @@ def test_a_later_table_of_the_same_shapes_keeps_the_layout_and_reads_the_values_
     params["matA.ior"] = 2.5
     params.update()
     later = Surfaces(scene, first)
-    assert later.slot_of_shape is first.slot_of_shape and later.materials is first.materials
+    assert later.layout.slot_of_shape is first.layout.slot_of_shape \
+        and later.layout.materials is first.layout.materials
     slot_b = slots_of_shapes(mitsuba, scene, later)[3]
     slot_a = slots_of_shapes(mitsuba, scene, later)[0]
     np.testing.assert_allclose(later.host["color"][slot_b], [0.9, 0.8, 0.7], rtol=1e-6)
@@ -203,4 +204,4 @@ def test_a_table_of_other_shapes_builds_its_own_layout(mitsuba, scene):
     other = mitsuba.load_dict({"type": "scene", "m": material(mitsuba, B),
                                "s": sphere(0, {"type": "ref", "id": "m"})})
     table = Surfaces(other, Surfaces(scene))
-    assert table.count == 1 and table.host["diffuse_mix"][0] == pytest.approx(B["diffuse_mix"])
+    assert table.layout.count == 1 and table.host["diffuse_mix"][0] == pytest.approx(B["diffuse_mix"])

@@ -1,0 +1,106 @@
+"""The budget of a render: what a ray costs, and the guards that refuse, before tracing, what
+no budget can hold.
+
+A refused request raises :class:`BudgetError`, one line saying why and what would work:
+
+* an output buffer larger than the memory available (:func:`check_image`);
+* a render whose average pixel's ray tree alone exceeds the memory budget, or whose
+  estimated time is beyond the time limit (:class:`Estimate`): the rays are estimated
+  from the probe's rays per camera ray (``chunks.probe``), job by job as the render's jobs
+  become known (the first pass, then each anti-aliasing level).
+
+A single pixel whose tree exceeds the budget once traced is refused by the chunker
+(``chunks.Chunker``), with the same error.
+"""
+
+from raymitsuba.options import GIB
+
+# Memory per ray of a chunk's tree (what every generation keeps, the widest generation's
+# transient arrays, Embree's and the allocator's share). Measured peaks on the benchmark
+# scenes: 50-95 bytes per ray (primal), about 100 for a whole AD step, whose graph keeps
+# every generation; the figures leave a margin of 2-6x, which the output buffer, an 8-bit
+# encoder's copy of it and Dr.Jit's allocator cache share.
+BYTES_PER_RAY = 200
+BYTES_PER_RAY_AD = 640
+RAYS_PER_SECOND = 4e6  # the time guard's figure: rays traced per second (2 CPU cores)
+
+
+class BudgetError(RuntimeError):
+    """A request no memory budget can hold (one pixel's tree, the output buffer...)."""
+
+
+def available_memory():
+    """Bytes of memory available to this process (MemAvailable on Linux; None: unknown)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return None
+
+
+def check_image(width, height, memory_budget, assemble=True):
+    """Refuse (BudgetError) a ``width`` x ``height`` image whose output buffer cannot be
+    held: too many values for one image or, when the image is ``assemble``d on the host,
+    more memory than is available besides one chunk's ``memory_budget``."""
+    if width * height * 3 >= 1 << 32:
+        raise BudgetError(f"{width} x {height} is too large for one image "
+                          "(over 2^32 values); render it in tiles with a smaller size")
+    if not assemble:
+        return
+    need = width * height * 3 * 4 * 2  # the float32 image (and its copy as a tensor)
+    available = available_memory()
+    if available is not None and need + min(memory_budget, available // 2) > available:
+        raise BudgetError(f"a {width} x {height} float image needs {need / GIB:.1f} GB "
+                          f"and only {available / GIB:.1f} GB is available: render a "
+                          "smaller image, or to an 8-bit .png without --aa")
+
+
+class Estimate:
+    """The rays a render of a ``width`` x ``height`` image at ``spp`` samples per pixel will
+    trace, counted as its jobs become known (:meth:`admit`), and the guards on them.
+
+    ``rays_per_camera_ray``: the probe's estimate; ``max_depth``: the tree's depth (the
+    messages name it); ``memory_budget``: bytes one chunk's tree may take; ``time_limit``:
+    seconds (0: none)."""
+
+    def __init__(self, rays_per_camera_ray, width, height, spp, max_depth, memory_budget,
+                 time_limit):
+        self.rays_per_camera_ray = rays_per_camera_ray  # the probe's estimate
+        self.width, self.height = width, height  # the image
+        self.spp = spp  # the render's samples per pixel
+        self.max_depth = max_depth  # bounces after the camera ray
+        self.memory_budget = memory_budget  # bytes one chunk's tree may take
+        self.time_limit = time_limit  # seconds of estimated time refused past (0: none)
+        self.rays = 0.0  # the estimate: the rays of the jobs admitted so far
+
+    def admit(self, pixels, samples):
+        """Count a job of ``pixels`` pixels at ``samples`` samples each in the estimate, then
+        refuse (BudgetError) the render if its average pixel's ray tree alone exceeds the
+        memory budget, or if its estimated time is beyond the time limit."""
+        self.rays += self.rays_per_camera_ray * pixels * samples
+        pixel = self.rays / (self.width * self.height) * BYTES_PER_RAY
+        if pixel > self.memory_budget:
+            raise BudgetError(
+                f"depth {self.max_depth} at {self.spp} spp: the ray tree of a pixel needs about "
+                f"{pixel / GIB:.3g} GB, over the memory budget ({self.memory_budget / GIB:.3g} "
+                "GB): lower --max-depth or --spp, add a --bailout (e.g. 1e-3), or raise "
+                "--memory-budget")
+        seconds = self.rays / RAYS_PER_SECOND
+        if self.time_limit > 0 and seconds > self.time_limit:
+            raise BudgetError(
+                f"{self.width} x {self.height} at {self.spp} spp, depth {self.max_depth}: about "
+                f"{self.rays:.3g} rays, an estimated {duration(seconds)} "
+                f"(over the {duration(self.time_limit)} limit): lower the size, --spp or "
+                "--max-depth, add a --bailout, or raise --time-limit")
+
+
+def duration(seconds):
+    """``seconds`` as a message says it: seconds, minutes or hours."""
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
