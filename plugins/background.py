@@ -2,7 +2,7 @@
 
 Parameters: ``color`` (Color3f, default black; differentiable). Read by the
 Whitted integrator as ``background_color`` (the background interface, see
-``_protocol.py``); not a radiometric emitter.
+``whitted/protocol.py``); not a radiometric emitter.
 """
 
 import drjit as dr

@@ -85,7 +85,7 @@ def render(loaded: Loaded, spp: int | None = None, params=None):
     Traced in chunks within the loaded ``memory_budget`` and assembled on the host (16384 x
     16384 works: a 3.2 GB tensor); ``loaded.integrator.render_array(loaded.scene)`` gives
     the numpy array without the tensor's copy. A request no budget can hold raises
-    ``BudgetError`` (raymitsuba.plugins.whitted.chunks) before anything is traced."""
+    ``BudgetError`` (raymitsuba.plugins.whitted.guards) before anything is traced."""
     from raymitsuba.backend import mitsuba
 
     mi = mitsuba()

@@ -128,3 +128,12 @@ def test_the_language_and_the_model_need_only_the_standard_library(name):
             continue
         third_party |= {t for t in top if t != "raymitsuba" and t not in sys.stdlib_module_names}
     assert not third_party, f"{name} imports {sorted(third_party)}"
+
+
+def test_the_integrators_protocol_depends_on_no_concrete_plugin():
+    """What raywhitted reads from its plugins is declared in plugins/whitted/protocol.py,
+    which the plugins satisfy; it imports none of them."""
+    name = "raymitsuba.plugins.whitted.protocol"
+    plugins = {target for target, _ in imports(name, MODULES[name])
+               if room(target) == "plugins"}
+    assert not plugins, f"{name} imports {sorted(plugins)}"

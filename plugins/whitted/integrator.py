@@ -57,7 +57,7 @@ class RenderStats(NamedTuple):
     estimate: guards.Estimate = None  # the guards' estimate (None before any render)
     chunks: int = 0  # chunks traced
     rays_traced: int = 0  # rays of every chunk's tree
-    rays_per_generation: list = []  # of the last chunk traced: how many rays each depth traced
+    rays_per_generation: tuple = ()  # of the last chunk traced: how many rays each depth traced
 
 
 class Whitted(mi.CppADIntegrator):

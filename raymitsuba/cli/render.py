@@ -82,7 +82,7 @@ def render(scene, output, dialect, **options):
     BudgetError = _NotYet  # the plugins' class, once Mitsuba is set up
     try:
         backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
-        from raymitsuba.plugins.whitted.chunks import BudgetError
+        from raymitsuba.plugins.whitted.guards import BudgetError
 
         loaded = api.load(model, **options)
         # The scene's objects (10^4s of them) live until the command exits: out of the cyclic
