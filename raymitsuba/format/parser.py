@@ -7,15 +7,11 @@ Public entry points:
 * :func:`parse` -- either of the two, guessed from the argument;
 * :func:`detect_dialect` -- which dialect a text is in;
 * :data:`LINE_END` and :func:`token_spans` -- the lexical rules, for tools that edit
-  .RAY text in place (``raymitsuba.fit`` writes fitted numbers back with them).
+  .RAY text in place (:mod:`raymitsuba.format.writeback` writes fitted numbers back).
 
 Each takes ``dialect``: ``"auto"`` (the default: decided from the text, see
-:func:`detect_dialect`), ``"comp575"`` or ``"mit6837"``. The work is split by concern:
-:mod:`raymitsuba.format.lexer` (lines, characters, tokens, comments),
-:mod:`raymitsuba.format.commands` (the table of commands of each dialect),
-:mod:`raymitsuba.format.builder` (the scene state and the commands both dialects share),
-:mod:`raymitsuba.format.comp575` and :mod:`raymitsuba.format.mit6837` (each dialect's commands),
-:mod:`raymitsuba.format.textures` (texture files), :mod:`raymitsuba.format.diagnostics`.
+:func:`detect_dialect`), ``"comp575"`` or ``"mit6837"``. The modules the work is split
+into are listed in the package's index (:mod:`raymitsuba.format`).
 
 The contract with callers: the result is a :class:`Scene`, or a :class:`RayError` is
 raised carrying **every** error of the input (the parser carries on after a bad line)
