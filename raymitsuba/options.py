@@ -136,26 +136,16 @@ class RenderOptions:
         return cls(**{name: value for name, value in values.items() if value is not None})
 
     def integrator_properties(self) -> Dict[str, Any]:
-        """The ``raywhitted`` properties: the integrator's fields that are set (not None)
-        and differ from their defaults, plus ``max_depth`` (always written)."""
-        out = {}
-        for f in dataclasses.fields(RenderOptions):
-            value = getattr(self, f.name)
-            if f.metadata["spec"].reader == INTEGRATOR and value is not None and \
-                    (f.name == "max_depth" or value != f.default):
-                out[f.name] = value
-        return out
+        """The ``raywhitted`` properties: the integrator's fields that differ from their
+        defaults (the integrator reads the others' defaults from this record)."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(RenderOptions)
+                if f.metadata["spec"].reader == INTEGRATOR and getattr(self, f.name) != f.default}
 
     @classmethod
     def from_properties(cls, props) -> "RenderOptions":
         """The integrator's options read from Mitsuba ``props`` (others at their defaults)."""
-        values = {name: props.get(name) for name, spec in specs()
-                  if spec.reader == INTEGRATOR and name in props}
-        if "memory_budget" in values:  # a property holds it as a float
-            values["memory_budget"] = int(float(values["memory_budget"]))
-        if "chunk_pixels" in values:
-            values["chunk_pixels"] = int(values["chunk_pixels"])
-        return cls.given(**values)
+        return cls.given(**{name: props.get(name) for name, spec in specs()
+                            if spec.reader == INTEGRATOR and name in props})
 
 
 def specs() -> Iterator:

@@ -37,9 +37,9 @@ def test_given_takes_none_as_the_default():
 
 
 def test_integrator_properties_are_what_differs_from_the_defaults():
-    assert RenderOptions().integrator_properties() == {"max_depth": 5}
-    o = RenderOptions(aa=0.02, bailout=1e-3, spp=4, srgb=True)
-    assert o.integrator_properties() == {"max_depth": 5, "aa": 0.02, "bailout": 1e-3}
+    assert RenderOptions().integrator_properties() == {}
+    o = RenderOptions(aa=0.02, bailout=1e-3, max_depth=3, spp=4, srgb=True)
+    assert o.integrator_properties() == {"max_depth": 3, "aa": 0.02, "bailout": 1e-3}
 
 
 def test_the_integrator_reads_the_records_defaults_and_ranges(mitsuba):

@@ -37,6 +37,14 @@ import numpy as np
 MESH, SMOOTH, TEXCOORDS, SPHERE = 1, 2, 4, 8  # bits of a shape's kind (0: not in the table)
 
 
+def shape_ids(scene):
+    """The registry ids of the scene's shapes (one vectorized read), in ``scene.shapes()``
+    order: they name the shapes while the scene lives."""
+    if not scene.shapes():
+        return np.zeros(0, np.uint32)
+    return dr.reinterpret_array(mi.UInt32, scene.shapes_dr()).numpy()
+
+
 def sphere_key(shape):
     bbox = shape.bbox()
     return tuple(bbox.min) + tuple(bbox.max)
@@ -111,12 +119,13 @@ class HitTable:
         self.to_object = None  # Float: the world-to-object columns, 4 x 3 per sphere (None: no uv)
 
     # -- the table ---------------------------------------------------------------------------
-    def update(self, scene, uv=True):
+    def update(self, scene, uv=True, ids=None):
         """The table of ``scene`` (rebuilt only if its shapes changed). ``uv``: whether the
         hits' texture coordinates are used (a checkerboard or an image texture); without
-        them the spheres' uv are 0 and their world-to-object matrices are not read."""
+        them the spheres' uv are 0 and their world-to-object matrices are not read.
+        ``ids``: the shapes' :func:`shape_ids`, if already read."""
         shapes = scene.shapes()
-        ids = dr.reinterpret_array(mi.UInt32, scene.shapes_dr()).numpy() if shapes else []
+        ids = shape_ids(scene) if ids is None else ids
         key, buffers = [], []
         for shape_id, shape in zip(ids, shapes):
             if shape.is_mesh():

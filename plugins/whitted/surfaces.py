@@ -34,7 +34,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .hits import HitTable
+from .hits import HitTable, shape_ids
 from .protocol import SURFACE_PARAMETERS, check_emitter, check_surface
 from ..checkerboard import checker
 
@@ -75,7 +75,8 @@ class SceneTerms:
         layout is reused for the same shapes (see Surfaces); ``geometry``: the HitTable to
         bring up to date with the scene (default: a new one)."""
         lights, backgrounds = [], []
-        self.surfaces = Surfaces(scene, surfaces)  # the surface table
+        ids = shape_ids(scene)  # read once: both tables are keyed by them
+        self.surfaces = Surfaces(scene, surfaces, ids)  # the surface table
         for emitter in scene.emitters():
             (lights if check_emitter(emitter) == "light" else backgrounds).append(emitter)
         # Color3f: the color of every ray that hits nothing
@@ -87,15 +88,7 @@ class SceneTerms:
         self.ambient = ambient  # Color3f: the sum of the ambient lights
         self.direct = [light for light in lights if not light.is_ambient]  # the other lights
         geometry = HitTable() if geometry is None else geometry
-        self.geometry = geometry.update(scene, uv=self.surfaces.layout.uses_uv)  # the hits' table
-
-
-def shape_ids(scene):
-    """The registry ids of the scene's shapes (one vectorized read), in ``scene.shapes()``
-    order: they name the shapes while the scene lives."""
-    if not scene.shapes():
-        return np.zeros(0, np.uint32)
-    return dr.reinterpret_array(mi.UInt32, scene.shapes_dr()).numpy()
+        self.geometry = geometry.update(scene, self.surfaces.layout.uses_uv, ids)  # the hits' table
 
 
 class Layout:
@@ -216,11 +209,12 @@ class Surfaces:
     a Color3f, the others Float), with the slots, checker sizes and image textures of its
     ``layout``."""
 
-    def __init__(self, scene, previous=None):
+    def __init__(self, scene, previous=None, ids=None):
         """The table of ``scene``; ``previous``: the table of an earlier render, whose
         layout (slots, materials, textures, checker sizes: fixed once a scene is loaded) is
-        reused when the scene's shapes are the same ones. The values are read anew."""
-        key = shape_ids(scene)
+        reused when the scene's shapes are the same ones. The values are read anew.
+        ``ids``: the shapes' registry ids (``hits.shape_ids``), if already read."""
+        key = shape_ids(scene) if ids is None else ids
         same_shapes = previous is not None and np.array_equal(previous.layout.key, key)
         self.layout = previous.layout if same_shapes else Layout(scene, key)  # (see Layout)
         attached = attached_values(self.layout.materials)
