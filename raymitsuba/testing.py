@@ -40,7 +40,9 @@ from typing import Optional
 import pytest
 
 CACHE_FOLDER = "raymitsuba"
-_state = {"config": None, "cache": None}
+#: The pytest sessions running, innermost last (pytester runs sessions inside a session),
+#: and the reference cache of each.
+_sessions = []
 
 
 class ReferenceCache:
@@ -131,18 +133,25 @@ def _versions():
     return _VERSIONS
 
 
+def _config():
+    return _sessions[-1][0] if _sessions else None
+
+
 def _cache() -> ReferenceCache:
-    if _state["cache"] is None:
-        config = _state["config"]
+    if not _sessions:  # called outside pytest: in memory only
+        _sessions.append((None, ReferenceCache(None)))
+    config, cache = _sessions[-1]
+    if cache is None:
         folder = None
         if config is not None and getattr(config, "cache", None) is not None:
             folder = str(config.cache.mkdir(CACHE_FOLDER))
-        _state["cache"] = ReferenceCache(folder)
-    return _state["cache"]
+        cache = ReferenceCache(folder)
+        _sessions[-1] = (config, cache)
+    return cache
 
 
 def _diff_folder() -> str:
-    config = _state["config"]
+    config = _config()
     factory = getattr(config, "_tmp_path_factory", None) if config is not None else None
     if factory is not None:
         return str(factory.mktemp("raymitsuba-diff"))
@@ -183,14 +192,11 @@ def assert_image_matches(image, reference, tolerance: Optional[float] = None,
 
 # -- the plugin's hooks and fixture ------------------------------------------------------------
 def pytest_configure(config):
-    _state["config"] = config
-    _state["cache"] = None
+    _sessions.append((config, None))
 
 
 def pytest_unconfigure(config):
-    if _state["config"] is config:
-        _state["config"] = None
-        _state["cache"] = None
+    _sessions[:] = [(c, cache) for c, cache in _sessions if c is not config]
 
 
 @pytest.fixture(scope="session")

@@ -26,11 +26,13 @@ DISPLAY_WIDTH = 320  # CSS pixels of each picture on the page (at least)
 STYLE = """
 body { font-family: sans-serif; margin: 2em; color: #222; }
 table { border-collapse: collapse; }
-th, td { border: 1px solid #bbb; padding: 0.3em 0.7em; text-align: right; }
-th:first-child, td:first-child { text-align: left; }
+th, td { border: 1px solid #bbb; padding: 0.3em 0.7em; text-align: right; white-space: nowrap; }
+th:first-child, td:first-child, th:last-child, td:last-child { text-align: left; }
 .pass { background: #d8f5d8; } .fail { background: #f8d4d4; }
 .missing, .error { background: #f3e6c4; }
-figure { display: inline-block; margin: 0 1em 1em 0; }
+.pictures { display: flex; flex-wrap: wrap; gap: 1em; }
+figure { margin: 0; } figcaption { font-weight: bold; }
+.path { font-size: 0.8em; color: #555; word-break: break-all; }
 img { image-rendering: pixelated; min-width: %dpx; border: 1px solid #888; }
 """ % DISPLAY_WIDTH
 
@@ -91,8 +93,7 @@ def html_text(results, settings, title: str = "raymitsuba compare") -> str:
         parts.append(
             f"<tr class='{r.status}'><td><a href='#{esc(r.name)}'>{esc(r.name)}</a></td>"
             f"<td>{score}</td><td>{f.get('left_out', '&ndash;')}</td>"
-            f"<td>{f.get('psnr', '&ndash;')}</td><td>{esc(r.status)}"
-            f"{(': ' + esc(r.message)) if r.message else ''}</td></tr>")
+            f"<td>{f.get('psnr', '&ndash;')}</td><td>{esc(r.status)}</td></tr>")
     parts.append("</table>")
     for r in results:
         parts.append(f"<h2 id='{esc(r.name)}'>{esc(r.name)}: {esc(r.status)}</h2>")
@@ -100,15 +101,17 @@ def html_text(results, settings, title: str = "raymitsuba compare") -> str:
             parts.append(f"<p>{esc(r.message)}</p>")
             continue
         parts.append("<p>" + "<br>".join(esc(line) for line in r.score.lines()) + "</p>")
-        pictures = (("submission: " + r.image_name, view(r.image, settings.srgb)),
-                    ("reference: " + r.reference_name, view(r.reference, settings.srgb)),
-                    ("difference (black: equal; yellow: 32/255 or more; blue-gray: left out)",
+        pictures = (("submission", r.image_name, view(r.image, settings.srgb)),
+                    ("reference", r.reference_name, view(r.reference, settings.srgb)),
+                    ("difference", "black: equal; yellow: 32/255 or more; blue-gray: left out",
                      heat_map(difference(r.image, r.reference), r.unstable)))
-        for caption, pixels in pictures:
+        parts.append("<div class='pictures'>")
+        for caption, detail, pixels in pictures:
             width = max(DISPLAY_WIDTH, pixels.shape[1])
-            parts.append(f"<figure><img class='picture' src='{_data_uri(pixels)}' "
+            parts.append(f"<figure style='width: {width}px'><img src='{_data_uri(pixels)}' "
                          f"width='{width}' alt='{esc(caption)}'><figcaption>{esc(caption)}"
-                         "</figcaption></figure>")
+                         f"</figcaption><div class='path'>{esc(detail)}</div></figure>")
+        parts.append("</div>")
     parts.append("</body></html>\n")
     return "\n".join(parts)
 
