@@ -270,8 +270,11 @@ class Tracer:
             transmittance = dr.select(onward & (crossings >= limit), 0.0, transmittance)
             p = ray(crossing.t)
             step = (1.0 + dr.max(dr.abs(p))) * (mi.math.RayEpsilon * self.offset_scale)
+            # (not mi.Ray3f(o, d, maxt): with three arguments the third is the ray's *time*,
+            # and maxt stays infinite: the walk would run on past the light)
             ray = mi.Ray3f(dr.select(onward, p + step * ray.d, ray.o), ray.d,
-                           dr.select(onward, ray.maxt - crossing.t - step, ray.maxt))
+                           dr.select(onward, ray.maxt - crossing.t - step, ray.maxt),
+                           ray.time, ray.wavelengths)
             return ray, transmittance, crossings, slots, onward & (crossings < limit)
 
         slots = tuple(mi.UInt32(NO_SLOT) for _ in range(limit if record else 0))
