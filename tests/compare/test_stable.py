@@ -67,6 +67,25 @@ def test_compare_leaves_the_unstable_pixels_out_of_the_score():
     assert every.score.failed == ref.unstable.sum()
 
 
+def test_a_scene_reference_costs_four_renders(monkeypatch):
+    """Counted on the integrator itself: every image it traces is one call of render_array."""
+    from raymitsuba.backend import mitsuba
+
+    mitsuba()
+    from raymitsuba.plugins.whitted.integrator import Whitted
+
+    calls = []
+    original = Whitted.render_array
+
+    def counted(self, *args, **kwargs):
+        calls.append(1)
+        return original(self, *args, **kwargs)
+
+    monkeypatch.setattr(Whitted, "render_array", counted)
+    result = compare_scene(np.zeros((9, 11, 3)), parse_text(EDGE))
+    assert len(calls) == result.renders == 4
+
+
 def test_the_scene_scale_is_its_box_or_the_view_distance():
     assert scene_scale(parse_text(FLAT)) == 5  # the plane has no box
     assert scene_scale(parse_text("eye 0 0 1\nscale 10 10 10\nsphere\n")) == \
