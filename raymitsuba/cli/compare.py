@@ -16,6 +16,7 @@ batch after every other scene was scored.
 from __future__ import annotations
 
 import json
+import os
 import sys
 
 import click
@@ -29,9 +30,16 @@ STEM = "{stem}"
 
 
 def _check_output(path, flag, extensions):
-    if path is not None and not path.lower().endswith(extensions):
+    """A usage error (status 2, before any work) unless ``path`` (None: not asked for) has
+    one of the ``extensions`` and its folder exists."""
+    if path is None:
+        return
+    if not path.lower().endswith(extensions):
         raise click.BadParameter(f"{path}: expected a {' or '.join(extensions)} file",
                                  param_hint=flag)
+    folder = os.path.dirname(path) or "."
+    if not os.path.isdir(folder):
+        raise click.BadParameter(f"{path}: no folder {folder}", param_hint=flag)
 
 
 def _summary(result) -> str:
@@ -45,7 +53,8 @@ def _summary(result) -> str:
 
 @click.command()
 @click.argument("image", type=click.Path(dir_okay=False))
-@click.argument("references", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("references", nargs=-1, required=True, type=click.Path(dir_okay=False),
+                metavar="REFERENCE...")
 @click.option("--tolerance", type=click.FloatRange(0, 1), default=TOLERANCE,
               show_default="2/255",
               help="A pixel matches when its largest channel difference is at most this "

@@ -128,6 +128,10 @@ def test_bad_inputs_exit_2_with_one_line(tmp_path, rendered, scene):
         lines = result.output.strip().splitlines()
         assert len(lines) == 1 and message in lines[0], result.output
     assert run(rendered, scene, "--diff", tmp_path / "d.txt").exit_code == 2
+    for flag in ("--diff", "--report", "--csv"):  # (a folder that is not there: nothing done)
+        out = tmp_path / "nowhere" / {"--diff": "d.png", "--report": "r.html", "--csv": "c.csv"}[flag]
+        result = run(rendered, scene, flag, out)
+        assert result.exit_code == 2 and "no folder" in result.output
     assert run(rendered, scene, scene).exit_code == 2  # two references, no {stem}
 
 
