@@ -72,8 +72,9 @@ def write_csv(results, path: str) -> None:
 
 
 def html_text(results, settings, title: str = "raymitsuba compare") -> str:
-    from raymitsuba.compare.picture import heat_map, view
+    from raymitsuba.compare.picture import HEAT_RANGE, heat_map, view
     from raymitsuba.compare.score import difference
+    from raymitsuba.compare.stable import CAMERA_SHIFT, OFFSET_FACTOR
 
     esc = html.escape
     passed = sum(r.status == "pass" for r in results)
@@ -83,8 +84,9 @@ def html_text(results, settings, title: str = "raymitsuba compare") -> str:
              f"<h1>{esc(title)}</h1>",
              f"<p>{passed} of {len(results)} passed: at least {settings.min_match:g} % of the "
              f"scored pixels within {tol} (largest channel difference). Pixels whose reference "
-             "is not stable (they change when the camera moves by 3e-5 of the scene or the "
-             "secondary rays' offset grows 100&times;) are left out of the score.</p>",
+             f"is not stable (they change when the camera moves by {CAMERA_SHIFT:g} of the "
+             f"scene or the secondary rays' offset grows {OFFSET_FACTOR:g}&times;) are left out "
+             "of the score.</p>",
              "<table><tr><th>scene</th><th>score</th><th>left-out pixels</th><th>PSNR</th>"
              "<th>result</th></tr>"]
     for r in results:
@@ -103,7 +105,8 @@ def html_text(results, settings, title: str = "raymitsuba compare") -> str:
         parts.append("<p>" + "<br>".join(esc(line) for line in r.score.lines()) + "</p>")
         pictures = (("submission", r.image_name, view(r.image, settings.srgb)),
                     ("reference", r.reference_name, view(r.reference, settings.srgb)),
-                    ("difference", "black: equal; yellow: 32/255 or more; blue-gray: left out",
+                    ("difference", f"black: equal; yellow: {HEAT_RANGE * 255:g}/255 or more; "
+                                   "blue-gray: left out",
                      heat_map(difference(r.image, r.reference), r.unstable)))
         parts.append("<div class='pictures'>")
         for caption, detail, pixels in pictures:
