@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import fnmatch
 import math
+import re
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Sequence, Union
@@ -67,6 +68,9 @@ LOWER_BOUNDS: Dict[str, Optional[float]] = {
     "color": 0.0, "ambient_mix": 0.0, "diffuse_mix": 0.0, "specular_mix": 0.0,
     "phong_coeff": 0.0, "reflectivity": 1e-4, "refractivity": 1e-4, "ior": 1e-3,
     "position": None, "direction": None, "shape_coefficient": 0.0,
+    # geometry and camera keys (the others -- offsets, factors, angles, corners, centres, the
+    # eye, lookat and up -- are free)
+    "radius": 1e-6, "fov": 1e-3,
 }
 
 #: What a request the fit cannot carry out raises (an unknown key, a wrong target size, a
@@ -97,11 +101,12 @@ def default_keys(model: Scene) -> List[str]:
     return keys
 
 
-def select_keys(model: Scene, requested: Optional[Sequence[str]]) -> List[str]:
+def select_keys(model: Scene, requested: Optional[Sequence[str]], data=None) -> List[str]:
     """Resolve ``requested`` (exact keys or shell patterns such as ``mat1.*``) against
-    :func:`writable_keys`; None means :func:`default_keys`. Raises FitError naming the
-    valid keys when an item matches nothing."""
-    valid = writable_keys(model)
+    :func:`writable_keys` (with the file's text ``data``, the geometry and camera keys too);
+    None means :func:`default_keys`. Raises FitError naming the valid keys when an item
+    matches nothing."""
+    valid = writable_keys(model, data)
     if requested is None:
         return default_keys(model)
     keys: List[str] = []
@@ -215,6 +220,8 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     for key in keys:
         if key not in params:
             raise FitError(f"unknown parameter `{key}`; valid keys: {', '.join(params.keys())}")
+        if loaded.geometry is not None and key in loaded.geometry.values:
+            loaded.geometry.check(key)  # (a FitError: a key that cannot move, and why)
     target = np.asarray(target, dtype=np.float32)
     shape = (loaded.options.height, loaded.options.width, 3)
     if target.shape != shape:
@@ -239,7 +246,9 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     # The steps render and update through the fitted parameters only: Mitsuba's render and
     # update visit every parameter they are given, 8 per material of the scene.
     fitted = mi.traverse(loaded.scene)
-    fitted.keep(keys)
+    if loaded.geometry is not None:  # the geometry and camera keys
+        loaded.geometry.register(fitted)
+    fitted.keep([re.escape(key) + "$" for key in keys])
 
     result = FitResult(keys=keys, start=start, fitted=dict(start))
     for iteration in range(iters):

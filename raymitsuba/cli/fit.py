@@ -82,7 +82,7 @@ def fit(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, **o
     model, data = parse_scene(scene, dialect)
     report(model.warnings)
     try:
-        selected = fitting.select_keys(model, None if keys is None else keys.split(","))
+        selected = fitting.select_keys(model, None if keys is None else keys.split(","), data)
     except fitting.FitError as e:
         fail(str(e))
     if not selected:
@@ -90,9 +90,9 @@ def fit(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, **o
              "name parameters with --params")
     truth_values = None
     if truth is not None:
-        truth_model, _ = parse_scene(truth, dialect)
+        truth_model, truth_data = parse_scene(truth, dialect)
         try:
-            truth_values = fitting.model_values(truth_model, selected)
+            truth_values = fitting.model_values(truth_model, selected, truth_data)
         except fitting.FitError as e:
             fail(f"{truth}: {e}")
     try:

@@ -180,12 +180,14 @@ def place_of(model: Scene, key: str, lines: Sequence[str] = ()) -> Place:
                                          command.operand_for(parsed.field))))
 
 
-def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value]) -> Union[bytes, str]:
+def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value],
+                  exact: bool = False) -> Union[bytes, str]:
     """The .RAY source ``data`` with the operands of ``values``' keys replaced by the values.
 
     Every other byte is kept. ``model`` must be the parse of ``data`` (its line numbers
     locate the operands). A number whose value is unchanged (as float32, the precision of
-    the renderer) keeps its original spelling."""
+    the renderer) keeps its original spelling. ``exact``: changed numbers are written with
+    every digit (``repr``, which reads back as the same float64) instead of ``.6g``."""
     is_bytes = isinstance(data, (bytes, bytearray))
     text = bytes(data).decode("utf-8", "surrogateescape") if is_bytes else data
     parts = _LINE_END_KEPT.split(text)  # line, end, line, end, ..., line
@@ -217,8 +219,12 @@ def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value
                                f"{lines[place.line - 1]!r}")
             line, begin, end = tokens[position]
             original = lines[line - 1][begin:end]
-            new = original if _same_float32(original, operand, component) \
-                else _format(operand.written(component))
+            written = operand.written(component)
+            if exact:
+                new = original if float(original) == written else repr(float(written))
+            else:
+                new = original if _same_float32(original, operand, component) \
+                    else _format(written)
             edits.setdefault(line, {})[(begin, end)] = new
     for line, changes in edits.items():
         source = lines[line - 1]
