@@ -14,7 +14,9 @@ The keys (:class:`~raymitsuba.format.commands.ParamKey`: ``camera.eye``, ``spher
   analytic sphere's ``to_world``, a mesh's ``vertex_positions``; the camera's ``to_world``
   and field of view) and Mitsuba rebuilds Embree's acceleration structure; the integrator's
   tables follow (they are rebuilt when the shapes' buffers or the spheres' boxes change).
-  How an object is represented never changes: a key that would move a plane or a
+  How an object is represented never changes (the shapes are translated under the loaded
+  camera, so a plane's rings and the tessellations' segment counts, which follow the
+  camera, stay as loaded): a key that would move a plane or a
   tessellated object (cylinder, cone, a sphere under a non-uniform scale), or change what
   kind of shape stands for an object, is refused (:class:`~raymitsuba.format.writeback.
   ParameterError`) before anything is changed.
@@ -116,8 +118,11 @@ class GeometryKeys:
         """The shapes and camera of the model with ``values`` ({key: value}) written in."""
         data = rewrite_scene(self.data, self.model, values, exact=True)
         model = parse_text(data, self.model.dialect)
-        model = dataclasses.replace(model, file=self.model.file)
-        return shape_geometry(model, self.options), camera_geometry(model, self.options)
+        # The shapes are translated under the loaded camera: the plane's rings and the
+        # tessellations' segment counts follow the camera, and stay as loaded.
+        shapes = shape_geometry(dataclasses.replace(model, camera=self.model.camera),
+                                self.options)
+        return shapes, camera_geometry(model, self.options)
 
     def _moved(self, geometry):
         """{shape id: its new geometry} of the shapes that differ from the current ones
@@ -156,7 +161,10 @@ class GeometryKeys:
         import drjit as dr
 
         current = {key: _host(value) for key, value in self.values.items()}
-        changed = {key: v for key, v in current.items() if v != _as_value(self.written[key])}
+        # (as float32, the precision the values are held in: a key set to its own value is
+        # unchanged)
+        changed = {key: v for key, v in current.items()
+                   if not np.array_equal(np.float32(v), np.float32(_as_value(self.written[key])))}
         attached = [key for key, value in self.values.items() if dr.grad_enabled(value)]
         for key in set(changed) | set(attached):
             self.check(key)

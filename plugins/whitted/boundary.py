@@ -64,6 +64,7 @@ PAIRS_PER_CHUNK = 1 << 16
 NO_HIT = 0xFFFFFFFF
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
 VISIBILITY, SHADOW, CHECKER = 0, 1, 2
+LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
 
 
@@ -190,11 +191,20 @@ class Boundary:
             light = np.zeros(len(ly), np.int64)
             kind[visibility] = VISIBILITY
             same = ~visibility & (self.shape[ly, lx] != NO_HIT)
+            # On one surface, a pair across one edge only: where a shadow edge and a checker
+            # line (or two shadow edges) pass between the same two samples, the jump f_L - f_R
+            # is the sum of both and belongs to neither alone (such pairs are left out: a
+            # share of the crossings that falls as 1/k).
+            edges = np.zeros(len(ly), np.int64)
             for j in range(len(self.lights)):
-                edge = same & (kind < 0) & (self.lit[j][ly, lx] != self.lit[j][ry, rx])
+                edge = same & (self.lit[j][ly, lx] != self.lit[j][ry, rx])
+                edges += edge
                 kind[edge], light[edge] = SHADOW, j
-            checker = same & (kind < 0) & np.any(self.cell[ly, lx] != self.cell[ry, rx], -1)
+            lines = np.sum(self.cell[ly, lx] != self.cell[ry, rx], -1)  # u and v lines crossed
+            checker = same & (lines > 0)
+            edges += lines * checker
             kind[checker] = CHECKER
+            kind[same & (edges > 1)] = -1
             keep = kind >= 0
             points = dict(L=(ly, lx), R=(ry, rx), LA=beside[0], RA=beside[1], LB=beside[2],
                           RB=beside[3])
@@ -255,12 +265,34 @@ class Boundary:
         across = (1.0 - w) * (gla - glb) / span(points["LA"], points["LB"]) \
             + w * (gra - grb) / span(points["RA"], points["RB"])
         normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
-        df = self.color[L] - self.color[R]
+        df = self.jump(L, R, axis, w, kind)
         scale = np.where(valid, normal2 / (self.k ** 2 * np.where(valid, along, 1.0)), 0.0)
         g_star = (1.0 - mi.Float(w.astype(np.float32))) * g_l + mi.Float(w.astype(np.float32)) * g_r
         rate = -(g_star - dr.detach(g_star)) * mi.Float(scale.astype(np.float32))
         surrogate = mi.Color3f(*(mi.Float(np.ascontiguousarray(df[:, c])) for c in range(3))) * rate
         return surrogate, self.spread(L, axis, w, np.abs(across) / np.maximum(np.abs(along), 1e-30))
+
+    def jump(self, L, R, axis, w, kind):
+        """f_L - f_R across each pair's crossing: the colors of two rays traced just either
+        side of it (LIMIT lattice units, within the pair), where they see what L and R see
+        (else the colors of L and R themselves)."""
+        ly, lx = L
+        c = np.where(axis == 1, lx, ly) + 0.5 + w
+        step = np.minimum(LIMIT, 0.5 * np.minimum(w, 1.0 - w))
+        colors, shapes = [], []
+        with dr.suspend_grad():
+            for offset in (-step, step):
+                at = c + offset
+                y = np.where(axis == 1, ly + 0.5, at)
+                x = np.where(axis == 1, at, lx + 0.5)
+                ray = self.film_rays(y - 0.5, x - 0.5)
+                color = self.tracer.trace(self.scene, ray, self.terms).color
+                colors.append(np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1))
+                si = self.scene.ray_intersect_preliminary(ray)
+                shapes.append(dr.select(si.is_valid(), dr.reinterpret_array(mi.UInt32, si.shape),
+                                        NO_HIT).numpy())
+        same = (shapes[0] == self.shape[L]) & (shapes[1] == self.shape[R])
+        return np.where(same[:, None], colors[0] - colors[1], self.color[L] - self.color[R])
 
     def spread(self, L, axis, w, slope):
         """Where each pair's term goes: (pixel (n, 3), fraction (n, 3)) numpy. The crossing
