@@ -24,7 +24,7 @@ The keys (:class:`~raymitsuba.format.commands.ParamKey`: ``camera.eye``, ``spher
   with respect to the key (analytic spheres: centre and radius; meshes: positions) by
   central differences of the same host translation (exact for the keys on which the
   geometry depends affinely -- translations, scales, vertices, sphere centres and radii --,
-  O(h^2) for rotation angles, h = 1e-2 degree), handed to the integrator as a
+  O(h^2) for rotation angles, h = 1e-2 degree; others h = 1e-2 max(1, |value|)), handed to the integrator as a
   ``geometry_ad.GeometryAD`` (which says how they reach the rays and the hits). Rebuilt at
   every update (a rotation's Jacobian, or a translation's under a rotation, depends on the
   other keys' values).
@@ -50,7 +50,8 @@ from raymitsuba.translate import camera_geometry, shape_geometry
 
 CAMERA_FIELDS = ("eye", "lookat", "up", "fov")
 ANGLE_STEP = 1e-2  # degrees: the central difference of a rotation angle's Jacobian
-STEP = 1.0  # the central difference of the affine keys (exact for any step)
+STEP = 1e-2  # the central difference of the other keys, times max(1, |value|): exact for
+# the affine ones whatever the step (float32 mesh positions: ~1e-5 relative)
 
 
 class GeometryKeys:
@@ -234,7 +235,10 @@ class GeometryKeys:
         differentiated along the uniform direction (1, ..., 1) instead, each component taking
         1/m of it: the representation never changes, so a sphere only scales uniformly."""
         value = _as_tuple(changed.get(key, _as_value(self.written[key])))
-        h = ANGLE_STEP if ParamKey.parse(key).field == "angle" else STEP
+        h = ANGLE_STEP if ParamKey.parse(key).field == "angle" else \
+            STEP * max(1.0, max(abs(v) for v in value))
+        if ParamKey.parse(key).field == "factors":  # (a scale keeps its signs)
+            h = min(h, 0.25 * min(abs(v) for v in value))
         m = len(value)
         directions = [np.eye(m)[i] for i in range(m)]
         try:

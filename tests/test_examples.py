@@ -14,6 +14,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 @pytest.mark.parametrize("script,keys", [
     ("fit_phong.py", ["mat2.color", "mat2.diffuse_mix", "mat2.specular_mix", "mat2.phong_coeff"]),
     ("fit_glass.py", ["mat2.refractivity", "mat2.ior"]),
+    ("fit_shape.py", ["translate2.offset", "scale1.factors"]),
+    ("fit_pose.py", ["camera.eye", "camera.lookat"]),
 ])
 def test_example_runs(script, keys):
     result = subprocess.run([sys.executable, os.path.join("examples", script), "--iters", "4",

@@ -59,20 +59,27 @@ import mitsuba as mi
 import numpy as np
 
 from .hits import MESH, SMOOTH, SPHERE
+from .tree import reflect, refract
 
 PAIRS_PER_CHUNK = 1 << 16
 NO_HIT = 0xFFFFFFFF
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
-VISIBILITY, SHADOW, CHECKER = 0, 1, 2
+VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER = 0, 1, 2, 3, 4
+CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
+STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
 LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
 
 
 def wanted(tracer, scene):
     """Whether a derivative pass needs the boundary terms: some key moves the geometry or the
-    camera, or a light's position or direction has its gradient enabled."""
+    camera, or a light's position or direction, or a material's eta has its gradient
+    enabled."""
     if tracer.geometry_ad is not None and (tracer.geometry_ad.attached() or (
             tracer.geometry_ad.camera is not None and tracer.geometry_ad.camera.attached())):
+        return True
+    if tracer.surfaces is not None and any(  # eta moves what is seen through glass
+            dr.grad_enabled(material.ior) for material in tracer.surfaces.layout.materials):
         return True
     for emitter in scene.emitters():
         for name in ("position", "direction"):
@@ -86,6 +93,16 @@ def lattice_side(spp):
     """k for ``spp`` = k^2 samples per pixel (None: not a square lattice)."""
     k = int(round(spp ** 0.5))
     return k if k * k == spp else None
+
+
+def _merge(mask, si, other):
+    """The fields the boundary terms read (uv, shape) of ``si`` where ``mask``, else of
+    ``other``."""
+    out = dr.zeros(mi.SurfaceInteraction3f, dr.width(mask))
+    out.uv = dr.select(mask, si.uv, other.uv)
+    out.shape = dr.select(mask, si.shape, other.shape)
+    out.t = dr.select(mask, si.t, other.t)
+    return out
 
 
 class Boundary:
@@ -106,6 +123,14 @@ class Boundary:
         self.lit = np.zeros((len(self.lights),) + size, bool)
         self.occluder = np.full((len(self.lights),) + size + (2,), NO_HIT, np.uint32)
         self.color = np.zeros(size + (3,), np.float32)
+        # the specular chain (see chain_step): per bounce, the shape and face hit, its distance,
+        # the checker cell there and whether the bounce was a total internal reflection
+        depth = (CHAIN_DEPTH,) + size
+        self.chain_shape = np.full(depth, STOP, np.uint32)
+        self.chain_prim = np.zeros(depth, np.uint32)
+        self.chain_t = np.full(depth, np.inf, np.float32)
+        self.chain_cell = np.zeros(depth + (2,), np.int64)
+        self.chain_tir = np.zeros(depth, bool)
 
     # -- the keys --------------------------------------------------------------------------------
     def lattice_points(self, job, start, count):
@@ -127,7 +152,7 @@ class Boundary:
         self.color[y, x] = np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1)
         for name, values in keys.items():
             target = getattr(self, name)
-            if name in ("lit", "occluder"):
+            if name in ("lit", "occluder") or name.startswith("chain_"):
                 for j, v in enumerate(values):
                     target[j][y, x] = v
             else:
@@ -141,17 +166,24 @@ class Boundary:
         shape = dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT)
         out = {"shape": shape.numpy(), "prim": si.prim_index.numpy(), "t": si.t.numpy(),
                "normal": np.stack([c.numpy() for c in (si.n.x, si.n.y, si.n.z)], -1)}
-        layout = terms.surfaces.layout
-        cell = np.zeros((dr.width(hit), 2), np.int64)
-        if layout.checker_size is not None:
-            slot = terms.surfaces.slot(si.shape, hit)
-            size = dr.gather(mi.Float, layout.checker_size, slot, hit)
-            checkered = hit & (size > 0)
-            size = dr.select(checkered, size, 1.0)
-            cu = dr.select(checkered, dr.floor(si.uv.x / size), 0.0)
-            cv = dr.select(checkered, dr.floor(si.uv.y / size), 0.0)
-            cell = np.stack([cu.numpy(), cv.numpy()], -1).astype(np.int64)
-        out["cell"] = cell
+        out["cell"] = self.checker_cell(terms, si, hit)
+        chain = {name: [] for name in ("chain_shape", "chain_prim", "chain_t", "chain_cell",
+                                       "chain_tir")}
+        ray_k, si_k, alive = rays, si, hit
+        for _ in range(CHAIN_DEPTH):
+            ray_k, go, tir = self.chain_step(terms, si_k, ray_k)
+            alive = alive & go
+            si_k = self.tracer.intersect(scene, table, ray_k, coherent=False)
+            found = alive & si_k.is_valid()
+            chain["chain_shape"].append(dr.select(
+                found, dr.reinterpret_array(mi.UInt32, si_k.shape),
+                dr.select(alive, mi.UInt32(NO_HIT), mi.UInt32(STOP))).numpy())
+            chain["chain_prim"].append(si_k.prim_index.numpy())
+            chain["chain_t"].append(dr.select(found, si_k.t, dr.inf).numpy())
+            chain["chain_cell"].append(self.checker_cell(terms, si_k, found))
+            chain["chain_tir"].append((alive & tir).numpy())
+            alive = found
+        out.update(chain)
         lit, occluder = [], []
         n = self.tracer.facing_normal(si, rays)
         for light in self.lights:
@@ -167,6 +199,38 @@ class Boundary:
                 blocker.prim_index.numpy()], -1))
         out["lit"], out["occluder"] = lit, occluder
         return out
+
+    def checker_cell(self, terms, si, hit):
+        """(floor(u / size), floor(v / size)) of each hit on a checkered surface, else (0, 0)."""
+        layout = terms.surfaces.layout
+        if layout.checker_size is None:
+            return np.zeros((dr.width(hit), 2), np.int64)
+        slot = terms.surfaces.slot(si.shape, hit)
+        size = dr.gather(mi.Float, layout.checker_size, slot, hit)
+        checkered = hit & (size > 0)
+        size = dr.select(checkered, size, 1.0)
+        cu = dr.select(checkered, dr.floor(si.uv.x / size), 0.0)
+        cv = dr.select(checkered, dr.floor(si.uv.y / size), 0.0)
+        return np.stack([cu.numpy(), cv.numpy()], -1).astype(np.int64)
+
+    def chain_step(self, terms, si, ray):
+        """The next ray of the *specular chain* from the hit ``si`` of ``ray``: the refracted
+        ray where the surface has kt > 0 (the reflected one under total internal reflection),
+        else the reflected ray where kr > 0; (ray, whether there is one, TIR mask). Attached
+        when ``si`` and ``ray`` are (eta, the geometry, the camera)."""
+        surfaces = terms.surfaces
+        hit = si.is_valid()
+        slot = surfaces.slot(si.shape, hit)
+        kr = surfaces.get("reflectivity", slot, hit)
+        kt = surfaces.get("refractivity", slot, hit)
+        eta = surfaces.get("ior", slot, hit)
+        v, n = -ray.d, self.tracer.facing_normal(si, ray)
+        entering = dr.dot(si.n, ray.d) < 0
+        refracted, tir = refract(v, n, dr.select(entering, dr.rcp(eta), eta))
+        through = hit & (kt > 0) & ~tir
+        back = hit & ~through & ((kr > 0) | (kt > 0))
+        d = dr.select(through, refracted, reflect(v, n))
+        return self.tracer.spawn_ray(si, d), through | back, hit & (kt > 0) & tir
 
     # -- the pairs -------------------------------------------------------------------------------
     def pairs(self):
@@ -205,10 +269,28 @@ class Boundary:
             edges += lines * checker
             kind[checker] = CHECKER
             kind[same & (edges > 1)] = -1
+            # Seen along the specular chain (mirrors, glass): the first bounce whose key
+            # differs, if the first hits are alike; a pair whose chains differ in total
+            # internal reflection, or across two edges at that bounce, is left out.
+            depth = np.full(len(ly), -1, np.int64)
+            pending = same & (edges == 0)
+            for d in range(CHAIN_DEPTH):
+                cs_l, cs_r = self.chain_shape[d][ly, lx], self.chain_shape[d][ry, rx]
+                tir = self.chain_tir[d][ly, lx] != self.chain_tir[d][ry, rx]
+                shape_differs = cs_l != cs_r
+                lines = np.sum(self.chain_cell[d][ly, lx] != self.chain_cell[d][ry, rx], -1)
+                here = pending & (shape_differs | (lines > 0) | tir)
+                ok = here & ~tir & ((shape_differs & (lines >= 0)) | (lines == 1))
+                ok &= (cs_l != STOP) & (cs_r != STOP)
+                kind[ok & shape_differs] = CHAIN_VISIBILITY
+                kind[ok & ~shape_differs] = CHAIN_CHECKER
+                depth[ok] = d
+                pending &= ~here
             keep = kind >= 0
             points = dict(L=(ly, lx), R=(ry, rx), LA=beside[0], RA=beside[1], LB=beside[2],
                           RB=beside[3])
             found.append(dict(axis=np.full(keep.sum(), axis), kind=kind[keep], light=light[keep],
+                              depth=depth[keep],
                               **{name: (y[keep], x[keep]) for name, (y, x) in points.items()}))
         return {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))
                        if name in POINTS else np.concatenate([f[name] for f in found]))
@@ -250,9 +332,12 @@ class Boundary:
         points = {name: tuple(a[sl] for a in pairs[name]) for name in POINTS}
         L, R = points["L"], points["R"]
         kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
+        depth = pairs["depth"][sl]
         rays = [self.film_rays(*points[name]) for name in POINTS]
         his = [self.tracer.intersect(self.scene, table, ray, coherent=False) for ray in rays]
         g = self.crossing(table, terms, rays, his, L, R, kind, light)
+        if (depth >= 0).any():
+            g = self.chain_crossing(table, terms, rays, his, L, R, kind, depth, g)
         g_l, g_r = g[0], g[1]
         gl, gr, gla, gra, glb, grb = (dr.detach(v).numpy().astype(np.float64) for v in g)
         along = gr - gl  # dg per lattice unit along the pair's axis, across the crossing
@@ -321,25 +406,8 @@ class Boundary:
     def crossing(self, table, terms, rays, his, L, R, kind, light):
         """g at the rays of the pair's POINTS (Floats, attached)."""
         count = len(kind)
-        # visibility: N is the nearer of L and R
-        tl, tr = self.t[L], self.t[R]
-        near_is_l = tl <= tr
-        near = tuple(np.where(near_is_l, a, b) for a, b in zip(L, R))
-        far = tuple(np.where(near_is_l, b, a) for a, b in zip(L, R))
-        n_shape, n_prim = self.shape[near], self.prim[near]
-        f_shape, f_prim = self.shape[far], self.prim[far]
-        n_edge = self.crossed_edge(table, rays, n_shape, n_prim)
-        f_edge = self.crossed_edge(table, rays, f_shape, f_prim)
-        gn = [self.inside(table, ray, n_shape, n_prim, n_edge) for ray in rays]
-        gf = [self.inside(table, ray, f_shape, f_prim, f_edge) for ray in rays]
-        crease = [self.depth(table, ray, n_shape, n_prim) - self.depth(table, ray, f_shape, f_prim)
-                  for ray in rays]
-        gn_l, gn_r = gn[0].numpy(), gn[1].numpy()
-        gf_l, gf_r = gf[0].numpy(), gf[1].numpy()
-        use_n = np.sign(gn_l) != np.sign(gn_r)
-        use_f = ~use_n & (f_shape != NO_HIT) & (np.sign(gf_l) != np.sign(gf_r))
-        choice = [dr.select(mi.Bool(use_n), a, dr.select(mi.Bool(use_f), b, c))
-                  for a, b, c in zip(gn, gf, crease)]
+        choice = self.visibility(table, rays, (self.shape[L], self.prim[L], self.t[L]),
+                                 (self.shape[R], self.prim[R], self.t[R]))
         # shadows: the blocking primitive's inside function on the shadow rays
         if len(self.lights):
             blocked_l = ~self.lit[light, L[0], L[1]]
@@ -359,17 +427,72 @@ class Boundary:
                     choice[i] = dr.select(mi.Bool(mask), gs, choice[i])
         # checker lines
         if (kind == CHECKER).any():
-            cl, cr = self.cell[L], self.cell[R]
-            coord = np.where(cl[:, 0] != cr[:, 0], 0, 1)
-            line = np.maximum(cl, cr)[np.arange(count), coord].astype(np.float32)
-            slot = terms.surfaces.slot(his[0].shape, his[0].is_valid())
-            size = dr.gather(mi.Float, terms.surfaces.layout.checker_size, slot)
-            size = dr.select(size > 0, size, 1.0)
-            mask = mi.Bool(kind == CHECKER)
-            for i, si in enumerate(his):
-                u = dr.select(mi.Bool(coord == 0), si.uv.x, si.uv.y)
-                choice[i] = dr.select(mask, u / size - mi.Float(line), choice[i])
+            choice = self.checker_crossing(terms, his, self.cell[L], self.cell[R],
+                                           kind == CHECKER, choice)
         return choice
+
+    def visibility(self, table, rays, left, right):
+        """g of a visibility edge between the rays of L and R (the first two of ``rays``),
+        which see (shape, prim, t) ``left`` and ``right``: N is the nearer; N's inside
+        function where the other ray's line misses N's primitive, else the other's, else (a
+        crease) the difference of the two primitives' distances."""
+        near_is_l = left[2] <= right[2]
+        n_shape, n_prim = (np.where(near_is_l, a, b) for a, b in zip(left[:2], right[:2]))
+        f_shape, f_prim = (np.where(near_is_l, b, a) for a, b in zip(left[:2], right[:2]))
+        n_edge = self.crossed_edge(table, rays, n_shape, n_prim)
+        f_edge = self.crossed_edge(table, rays, f_shape, f_prim)
+        gn = [self.inside(table, ray, n_shape, n_prim, n_edge) for ray in rays]
+        gf = [self.inside(table, ray, f_shape, f_prim, f_edge) for ray in rays]
+        crease = [self.depth(table, ray, n_shape, n_prim) - self.depth(table, ray, f_shape, f_prim)
+                  for ray in rays]
+        gn_l, gn_r = gn[0].numpy(), gn[1].numpy()
+        gf_l, gf_r = gf[0].numpy(), gf[1].numpy()
+        use_n = np.sign(gn_l) != np.sign(gn_r)
+        use_f = ~use_n & (f_shape < STOP) & (np.sign(gf_l) != np.sign(gf_r))
+        return [dr.select(mi.Bool(use_n), a, dr.select(mi.Bool(use_f), b, c))
+                for a, b, c in zip(gn, gf, crease)]
+
+    def chain_crossing(self, table, terms, rays, his, L, R, kind, depth, g):
+        """g of the pairs whose edge is seen along the specular chain, at bounce ``depth``:
+        each ray's chain replayed, attached, then the visibility or checker function there."""
+        finals = []
+        for ray, si in zip(rays, his):
+            final_ray, final_si = ray, si
+            for d in range(int(depth.max()) + 1):
+                ray, _, _ = self.chain_step(terms, si, ray)
+                si = self.tracer.intersect(self.scene, table, ray, coherent=False)
+                at = mi.Bool(depth == d)
+                final_ray = mi.Ray3f(dr.select(at, ray.o, final_ray.o),
+                                     dr.select(at, ray.d, final_ray.d))
+                final_si = _merge(at, si, final_si)
+            finals.append((final_ray, final_si))
+        d = np.maximum(depth, 0)
+        left = tuple(a[d, L[0], L[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
+        right = tuple(a[d, R[0], R[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
+        vis = self.visibility(table, [r for r, _ in finals], left, right)
+        mask = mi.Bool(kind == CHAIN_VISIBILITY)
+        g = [dr.select(mask, a, b) for a, b in zip(vis, g)]
+        if (kind == CHAIN_CHECKER).any():
+            cl, cr = self.chain_cell[d, L[0], L[1]], self.chain_cell[d, R[0], R[1]]
+            g = self.checker_crossing(terms, [s for _, s in finals], cl, cr,
+                                      kind == CHAIN_CHECKER, g)
+        return g
+
+    def checker_crossing(self, terms, his, cl, cr, which, g):
+        """g = u / size - m (or v) of the pairs ``which`` (numpy mask), at the hits ``his``
+        (the hit of the first ray gives the size); cl, cr: the cells at L and R."""
+        count = len(which)
+        coord = np.where(cl[:, 0] != cr[:, 0], 0, 1)
+        line = np.maximum(cl, cr)[np.arange(count), coord].astype(np.float32)
+        slot = terms.surfaces.slot(his[0].shape, his[0].is_valid())
+        size = dr.gather(mi.Float, terms.surfaces.layout.checker_size, slot)
+        size = dr.select(size > 0, size, 1.0)
+        mask = mi.Bool(which)
+        out = list(g)
+        for i, si in enumerate(his):
+            u = dr.select(mi.Bool(coord == 0), si.uv.x, si.uv.y)
+            out[i] = dr.select(mask, u / size - mi.Float(line), out[i])
+        return out
 
     def inside(self, table, ray, shape, prim, edge=None):
         """The inside function of primitive (shape, prim) for each ray (numpy ids): > 0 where

@@ -56,6 +56,11 @@ def show(value) -> str:
               help="Adam steps.")
 @click.option("--lr", default=0.02, show_default=True, type=click.FloatRange(0, min_open=True),
               help="Learning rate, relative to each parameter's scale max(1, |start|).")
+@click.option("--levels", default=1, show_default=True, type=click.IntRange(1, 8),
+              help="Coarse to fine: the steps are shared among this many levels, the first "
+                   "comparing images averaged over 2^(levels-1) pixel blocks (so that an "
+                   "object far from its place in the target still gets a gradient), the last "
+                   "at full resolution.")
 @render_options("spp", "max_depth", "aa", "memory_budget")
 @click.option("--truth", default=None, type=click.Path(dir_okay=False),
               help="The true scene (same structure): also print each parameter's error.")
@@ -65,7 +70,8 @@ def show(value) -> str:
                                  "images in sRGB.")
 @click.option("-q", "--quiet", is_flag=True, help="Print only the final summary.")
 @dialect_option
-def fit(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, **options):
+def fit(scene, target, output, keys, iters, lr, levels, truth, plot, quiet, dialect,
+        **options):
     """Fit parameters of the .RAY file SCENE so that its render matches TARGET.
 
     Minimises the mean squared error over pixels and channels (linear values) with
@@ -124,7 +130,8 @@ def fit(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, **o
     try:
         backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
         loaded = api.load(model, width=width, height=height, **options)
-        result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, callback=progress)
+        result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, callback=progress,
+                             levels=levels)
         fitted_text = fitting.rewrite_scene(data, model, result.fitted)
         if plot is not None:
             write_plot(plot, target_image, result, srgb)
