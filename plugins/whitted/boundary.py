@@ -5,21 +5,31 @@ estimated on the uniform k x k lattice of ``spp = k^2`` samples. Where f jumps a
 that moves with a parameter theta, the derivative of the integral has, besides the interior
 term that automatic differentiation of the samples gives, a boundary term (Reynolds
 transport) ``oint (f- - f+) v_n ds``. It is computed here, deterministically, on the same
-lattice, for the **primary** discontinuities:
+lattice, for these discontinuities:
 
 * **visibility**: silhouettes of analytic spheres, outlines of flat meshes (triangles),
   creases between two surfaces and between faces of a flat mesh that are not coplanar;
 * **shadow edges** of point, spot and directional lights on the surface seen;
-* **checker lines** on the surface seen.
+* **checker lines** on the surface seen;
+* visibility edges and checker lines **seen along the specular chain**: the path that
+  follows, from the surface seen, the refracted ray where kt > 0 (the reflected one under
+  total internal reflection), else the reflected ray where kr > 0, up to CHAIN_DEPTH
+  bounces (so eta's derivative sees the checker lines seen through glass, and a mirror's
+  reflection of an edge moves with the geometry and the camera).
 
-(Not yet: these seen in mirrors or through glass, total internal reflection, the specular
-cut-off at N.L = 0, the spot's cone at s = 0: see docs/gradients.md.)
+Not covered (left out, documented in docs/gradients.md): total internal reflection
+switching on or off, the specular cut-off at N.L = 0, the spot's cone at s = 0, shadow
+edges seen in mirrors or through glass, the branches of the tree other than the specular
+chain, and a pair of samples with two edges between them.
 
 **The lattice.** The samples of all pixels form one uniform grid over the image, spacing
 1/k pixel (sample (sx, sy) of pixel (px, py) is lattice point X = px k + sx, Y = py k + sy).
 Each sample's *key* is recorded while the adjoint pass traces it (:meth:`Boundary.collect`):
 the shape and face hit (and the face's normal), the checker cell, for each light whether it
-is lit and what blocks it, and the sample's color f.
+is lit and what blocks it, the same of each bounce of the specular chain (with its total
+internal reflection flag), and the sample's color f. These keys take host memory
+(BYTES_PER_SAMPLE per sample): a lattice whose keys exceed the memory budget is refused
+(BudgetError) before anything is traced.
 
 **Pairs.** Two lattice neighbours (in a row or a column) whose keys differ have an edge
 between them. For each such pair a smooth signed *crossing function* g(ray, theta) is
@@ -32,7 +42,9 @@ chosen, whose sign differs between the two samples:
 * a shadow edge of light j: the blocking primitive's inside function on the two samples'
   shadow rays (from the attached hit point toward the attached light);
 * a checker line: u / size - m (or v), m the line between the two cells, of the attached
-  texture coordinates.
+  texture coordinates;
+* the same at bounce d of the specular chain, each sample's chain replayed with
+  derivatives (eta, the geometry, the camera) to that bounce.
 
 g is evaluated with derivatives (the camera's rays and the geometry as the keys attach them,
 ``geometry_ad.py``; the lights' own parameters) at the two samples L, R and, detached, at
@@ -58,6 +70,9 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from raymitsuba.options import GIB
+
+from .guards import BudgetError
 from .hits import MESH, SMOOTH, SPHERE
 from .tree import reflect, refract
 
@@ -66,6 +81,10 @@ NO_HIT = 0xFFFFFFFF
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
 VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER = 0, 1, 2, 3, 4
 CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
+# host bytes of one sample's keys (shape, face, distance, normal, checker cell, color and,
+# per bounce of the chain, shape, face, distance, cell, TIR flag) and per light (lit, blocker)
+BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 16 + 12 + CHAIN_DEPTH * (4 + 4 + 4 + 16 + 1)
+BYTES_PER_LIGHT = 1 + 8
 STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
 LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
@@ -109,11 +128,17 @@ class Boundary:
     """The boundary terms of one adjoint pass over a ``width`` x ``height`` image sampled on
     the k x k lattice (``spp`` = k^2) of ``sensor`` (see the module docstring)."""
 
-    def __init__(self, tracer, scene, sensor, width, height, spp):
+    def __init__(self, tracer, scene, sensor, width, height, spp, budget):
         self.tracer, self.scene, self.sensor = tracer, scene, sensor
         self.width, self.height, self.k = width, height, lattice_side(spp)
         self.terms = tracer.scene_terms(scene)  # detached: keys only
         self.lights = self.terms.direct
+        need = width * height * spp * (BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights))
+        if need > budget:
+            raise BudgetError(
+                f"the boundary terms' keys of {width} x {height} x {spp} samples take "
+                f"{need / GIB:.2g} GB, more than the memory budget ({budget / GIB:.2g} GB): "
+                "use a smaller image or spp, or a larger --memory-budget")
         size = (height * self.k, width * self.k)
         self.shape = np.full(size, NO_HIT, np.uint32)
         self.prim = np.zeros(size, np.uint32)

@@ -226,7 +226,8 @@ class Whitted(mi.CppADIntegrator):
                 f"sample lattice of --spp k^2 (got spp={spp}"
                 + (", with --aa" if self.aa > 0 else "") + "): their edges' terms are "
                 "computed between neighbouring lattice samples")
-        return boundary.Boundary(self.tracer, scene, sensor, width, height, spp)
+        return boundary.Boundary(self.tracer, scene, sensor, width, height, spp,
+                                 self.memory_budget)
 
     def _adjoint_chunker(self, scene, sensor):
         return Chunker(self.tracer, scene, sensor, self.memory_budget,
