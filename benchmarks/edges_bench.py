@@ -47,7 +47,7 @@ sphere 0.1 0.05 0 1.3
 """
 TRIANGLE = FLAT + "rotateZ 10\ntriangle -1.1 -1 0  1.3 -0.7 0.3  0.2 1.2 0\n"
 SCENE = """\
-eye 0.4 2.5 6
+eye 0.4 4 5
 lookat 0 0.2 0
 fov 35
 background 0.2 0.3 0.4
@@ -146,12 +146,49 @@ def cost(mi, width, height, repeats=3):
           f"gradient step (translate2.offset, camera.eye) {s:.2f} s, ratio {s / p:.1f}")
 
 
+def figure(mi, path, width=64, height=48):
+    """The derivative images of a moving light (its shadow edge and shading), in a picture:
+    the reference, AD with the boundary terms (k = 4) and AD without them (the interior
+    term alone, as before issue 13)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from raymitsuba.plugins.whitted import boundary
+    from support_edges import finite_difference, forward
+
+    case = dict(text=SCENE, key="light1.position", direction=(0.6, 0.0, -0.8))
+    options = dict(width=width, height=height)
+    reference = finite_difference(mi, h=0.05, **case, **options)
+    full = forward(mi, spp=16, **case, **options)
+    wanted = boundary.wanted
+    boundary.wanted = lambda tracer, scene: False
+    try:
+        interior = forward(mi, spp=16, **case, **options)
+    finally:
+        boundary.wanted = wanted
+    panels = [("finite differences, 64 x 64 lattice", reference),
+              ("AD, k = 4, with boundary terms", full), ("AD, k = 4, interior only", interior)]
+    limit = np.percentile(np.abs(reference.sum(-1)), 99)
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    for ax, (title, image) in zip(axes, panels):
+        ax.imshow(image.sum(-1), cmap="RdBu_r", vmin=-limit, vmax=limit)
+        ax.set_title(title, fontsize=10)
+        ax.axis("off")
+    fig.suptitle("d image / d light1.position (along (0.6, 0, -0.8)), summed over r, g, b")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    print(f"wrote {path}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--width", type=int, default=32)
     ap.add_argument("--height", type=int, default=24)
     ap.add_argument("--cost-size", default="256x192")
     ap.add_argument("--only", default="accuracy,cost")
+    ap.add_argument("--figure", default=None, help="also write the derivative images (PNG)")
     args = ap.parse_args()
     from raymitsuba.backend import mitsuba
 
@@ -162,6 +199,8 @@ def main():
     if "cost" in only:
         w, h = (int(v) for v in args.cost_size.split("x"))
         cost(mi, w, h)
+    if args.figure:
+        figure(mi, args.figure)
 
 
 if __name__ == "__main__":

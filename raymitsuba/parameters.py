@@ -161,6 +161,8 @@ class GeometryKeys:
         """Move the geometry to the keys' values; attach their derivatives (module docstring)."""
         import drjit as dr
 
+        for value in self.values.values():  # data, not constants of the kernels: a fit
+            dr.make_opaque(value)  # compiles them once, not at every step
         current = {key: _host(value) for key, value in self.values.items()}
         # (as float32, the precision the values are held in: a key set to its own value is
         # unchanged)
@@ -186,18 +188,18 @@ class GeometryKeys:
         params = self.mitsuba
         for name, new in moved.items():
             if new[0] == "sphere":
-                params[f"{name}.to_world"] = mi.Transform4f(mi.ScalarTransform4f(new[3]))
+                params[f"{name}.to_world"] = _opaque(mi.Transform4f(mi.ScalarTransform4f(new[3])))
             else:
                 params[f"{name}.vertex_positions"] = mi.Float(new[1])
         if any(not np.array_equal(a, b) for a, b in zip(camera[:3], self.camera[:3])) \
                 or camera[3] != self.camera[3]:
             eye, lookat, up, fov = camera
-            params["sensor.to_world"] = mi.Transform4f().look_at(
+            params["sensor.to_world"] = _opaque(mi.Transform4f().look_at(
                 origin=mi.ScalarPoint3f(*eye), target=mi.ScalarPoint3f(*lookat),
-                up=mi.ScalarVector3f(*up))
+                up=mi.ScalarVector3f(*up)))
             width, height = self.options.width, self.options.height
-            params["sensor.x_fov"] = float(np.degrees(
-                2.0 * np.arctan(np.tan(np.radians(fov) / 2.0) * width / height)))
+            params["sensor.x_fov"] = _opaque(mi.Float(float(np.degrees(
+                2.0 * np.arctan(np.tan(np.radians(fov) / 2.0) * width / height)))))
         params.update()
 
     # -- derivatives ---------------------------------------------------------------------------------
@@ -272,6 +274,15 @@ class GeometryKeys:
             if np.any(d):
                 out[name] = d
         return out
+
+def _opaque(value):
+    """``value`` made data rather than a constant of the kernels (a fit that moves the camera
+    or a sphere would otherwise compile its kernels again at every step)."""
+    import drjit as dr
+
+    dr.make_opaque(value)
+    return value
+
 
 def _flat(geometry):
     """A shape's geometry as one float64 vector (sphere: centre, radius; mesh: positions)."""

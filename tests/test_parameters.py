@@ -34,6 +34,17 @@ surface 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1
 light 1 1 1 point 2 3 9
 sphere 0.1 0 0 2.2
 """
+MESH = """\
+eye 0.1 0.1 10 fov 20
+surface 0.8 0.4 0.3 0.3 0.7 0.4 10 0 0 1
+light 1 1 1 point 1 2 9
+triangles
+v -9 -8 0
+v 9 -8 -1
+v 0 9 0.5
+f 0 1 2
+end
+"""
 TRIANGLE = """\
 eye 0.1 0.1 5
 fov 20
@@ -61,6 +72,7 @@ def mi():
     (MIT, "sphere1.center", (0.3, -0.5, 0.2), 1e-3),
     (MIT, "sphere1.radius", (1.0,), 1e-3),
     (TRIANGLE, "triangle1.v1", (0.3, 0.5, -0.4), 1e-3),
+    (MESH, "v2.position", (0.3, 0.5, -0.4), 1e-3),
 ])
 def test_interior_derivatives_match_finite_differences(mi, text, key, direction, h):
     reference = finite_difference(mi, text, key, direction, h, spp=1, width=24, height=18)

@@ -114,6 +114,13 @@ def lattice_side(spp):
     return k if k * k == spp else None
 
 
+def _evaluated(si):
+    """``si`` with the fields read here evaluated once (each ``.numpy()`` or later kernel
+    would otherwise trace the rays again)."""
+    dr.eval(si.t, si.p, si.n, si.sh_frame.n, si.uv, si.shape, si.prim_index)
+    return si
+
+
 def _merge(mask, si, other):
     """The fields the boundary terms read (uv, shape) of ``si`` where ``mask``, else of
     ``other``."""
@@ -186,7 +193,7 @@ class Boundary:
     def keys(self, rays):
         """The keys of the samples of ``rays`` (detached), as numpy arrays."""
         scene, terms, table = self.scene, self.terms, self.terms.geometry
-        si = self.tracer.intersect(scene, table, rays, coherent=True)
+        si = _evaluated(self.tracer.intersect(scene, table, rays, coherent=True))
         hit = si.is_valid()
         shape = dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT)
         out = {"shape": shape.numpy(), "prim": si.prim_index.numpy(), "t": si.t.numpy(),
@@ -198,7 +205,8 @@ class Boundary:
         for _ in range(CHAIN_DEPTH):
             ray_k, go, tir = self.chain_step(terms, si_k, ray_k)
             alive = alive & go
-            si_k = self.tracer.intersect(scene, table, ray_k, coherent=False)
+            dr.eval(ray_k, go, tir)
+            si_k = _evaluated(self.tracer.intersect(scene, table, ray_k, coherent=False))
             found = alive & si_k.is_valid()
             chain["chain_shape"].append(dr.select(
                 found, dr.reinterpret_array(mi.UInt32, si_k.shape),
@@ -218,6 +226,7 @@ class Boundary:
             shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
             blocker = scene.ray_intersect_preliminary(shadow, coherent=False, active=active)
             blocked = active & blocker.is_valid()
+            dr.eval(blocked, blocker.shape, blocker.prim_index)
             lit.append((active & ~blocked).numpy())
             occluder.append(np.stack([
                 dr.select(blocked, dr.reinterpret_array(mi.UInt32, blocker.shape), NO_HIT).numpy(),
@@ -359,11 +368,14 @@ class Boundary:
         kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
         depth = pairs["depth"][sl]
         rays = [self.film_rays(*points[name]) for name in POINTS]
-        his = [self.tracer.intersect(self.scene, table, ray, coherent=False) for ray in rays]
+        dr.eval(rays)
+        his = [_evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
+               for ray in rays]
         g = self.crossing(table, terms, rays, his, L, R, kind, light)
         if (depth >= 0).any():
             g = self.chain_crossing(table, terms, rays, his, L, R, kind, depth, g)
         g_l, g_r = g[0], g[1]
+        dr.eval(*g)
         gl, gr, gla, gra, glb, grb = (dr.detach(v).numpy().astype(np.float64) for v in g)
         along = gr - gl  # dg per lattice unit along the pair's axis, across the crossing
         valid = (np.sign(gl) != np.sign(gr)) & (np.abs(along) > 0) & np.isfinite(along)
@@ -470,6 +482,7 @@ class Boundary:
         gf = [self.inside(table, ray, f_shape, f_prim, f_edge) for ray in rays]
         crease = [self.depth(table, ray, n_shape, n_prim) - self.depth(table, ray, f_shape, f_prim)
                   for ray in rays]
+        dr.eval(gn, gf, crease)
         gn_l, gn_r = gn[0].numpy(), gn[1].numpy()
         gf_l, gf_r = gf[0].numpy(), gf[1].numpy()
         use_n = np.sign(gn_l) != np.sign(gn_r)
@@ -485,7 +498,8 @@ class Boundary:
             final_ray, final_si = ray, si
             for d in range(int(depth.max()) + 1):
                 ray, _, _ = self.chain_step(terms, si, ray)
-                si = self.tracer.intersect(self.scene, table, ray, coherent=False)
+                dr.eval(ray)
+                si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
                 at = mi.Bool(depth == d)
                 final_ray = mi.Ray3f(dr.select(at, ray.o, final_ray.o),
                                      dr.select(at, ray.d, final_ray.d))
@@ -564,9 +578,10 @@ class Boundary:
         row = dr.gather(mi.UInt32, table.first, ids, valid)
         mesh = valid & ((kind & MESH) != 0)
         with dr.suspend_grad():
-            el, er = ([e.numpy() for e in self.edge_functions(table, ray, dr.normalize(ray.d),
-                                                                row, prim, mesh)]
-                      for ray in rays[:2])
+            edges = [self.edge_functions(table, ray, dr.normalize(ray.d), row, prim, mesh)
+                     for ray in rays[:2]]
+            dr.eval(edges, mesh)
+            el, er = ([e.numpy() for e in side] for side in edges)
         flips = np.stack([np.sign(a) != np.sign(b) for a, b in zip(el, er)], -1)
         edge = np.where(flips.any(-1), np.argmax(flips, -1), -1)
         return np.where(mesh.numpy(), edge, -1)

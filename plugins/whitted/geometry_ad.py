@@ -80,7 +80,9 @@ class CameraAD:
         """``ray`` (the sensor's camera rays) with the camera's derivative attached."""
         if not self.attached():
             return ray
-        start = {k: mi.ScalarVector3f(*map(float, self.start[k])) for k in ("eye", "lookat", "up")}
+        # (opaque: data, not constants of the kernels, which a fit would compile at each step)
+        start = {k: mi.Vector3f(*(dr.opaque(mi.Float, float(v)) for v in self.start[k]))
+                 for k in ("eye", "lookat", "up")}
         x0, y0, z0 = look_at_frame(start["eye"], start["lookat"], start["up"])
         d = ray.d
         q = mi.Vector2f(dr.dot(d, x0), dr.dot(d, y0)) / dr.dot(d, z0)
@@ -90,7 +92,8 @@ class CameraAD:
         s = mi.Float(1.0)
         if "fov" in self.values:
             half = dr.deg2rad(self.values["fov"]) * 0.5
-            s = dr.tan(half) / float(np.tan(np.radians(self.start["fov"]) * 0.5))
+            s = dr.tan(half) / dr.opaque(mi.Float, float(np.tan(np.radians(self.start["fov"])
+                                                                * 0.5)))
         direction = dr.normalize(s * (q.x * x + q.y * y) + z)
         out = mi.Ray3f(ray)
         out.o = dr.replace_grad(ray.o, mi.Point3f(vec["eye"]))
