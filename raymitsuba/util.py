@@ -21,3 +21,15 @@ def no_cyclic_gc():
     finally:
         if was_enabled:
             gc.enable()
+
+
+def error_message(exc: BaseException) -> str:
+    """One line for an unexpected exception: the last line of the innermost cause's message.
+
+    Mitsuba and Dr.Jit wrap errors raised inside a render (``drjit.custom(...): error while
+    performing a custom differentiable operation (see above)``); the cause says what failed.
+    """
+    while exc.__cause__ is not None:
+        exc = exc.__cause__
+    text = str(exc).strip()
+    return text.splitlines()[-1] if text else type(exc).__name__

@@ -13,6 +13,8 @@ import sys
 
 import click
 
+from raymitsuba.util import error_message  # noqa: F401 (the commands' one line for an exception)
+
 EXIT_FAILURE = 1
 EXIT_SCENE_ERROR = 2
 
@@ -40,15 +42,3 @@ def fail(command: str, message: str, code: int) -> None:
     """Print ``COMMAND: error: MESSAGE`` to stderr and exit with ``code``."""
     click.echo(f"{command}: error: {message}", err=True)
     sys.exit(code)
-
-
-def error_message(exc: BaseException) -> str:
-    """One line for an unexpected exception: the last line of the innermost cause's message.
-
-    Mitsuba and Dr.Jit wrap errors raised inside a render (``drjit.custom(...): error while
-    performing a custom differentiable operation (see above)``); the cause says what failed.
-    """
-    while exc.__cause__ is not None:
-        exc = exc.__cause__
-    text = str(exc).strip()
-    return text.splitlines()[-1] if text else type(exc).__name__

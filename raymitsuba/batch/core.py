@@ -1,0 +1,172 @@
+"""Running one function over many items on Dask workers: :func:`run_items`, the machinery
+every batch command shares (rendering scenes, tiles, fits; any per-item function).
+
+``fn(item)`` must be a pure function of its item, importable by the workers (a function
+of a module, pickled by reference) and return what the client needs (image bytes, a
+tile, a fitted scene's text): files are written by the client only. Each item ends as one
+:class:`Result`, in the order of the items:
+
+* ``done``: ``value`` is ``fn(item)``;
+* ``error``: ``fn`` raised :class:`ItemError` -- the item itself is wrong (a scene no
+  memory budget can hold); deterministic, so it is not retried;
+* ``failed``: ``fn`` raised anything else, or the item killed every worker it ran on
+  (Dask retries an item whose worker died, its nanny restarting the worker, until the
+  scheduler's ``distributed.scheduler.allowed-failures``); ``error`` says why;
+* ``cancelled``: not run, after a failure with ``fail_fast``.
+
+``attempts`` counts the workers an item was started on (1 plus the workers that died
+under it), ``worker`` the address of the one that finished it (``local`` in process).
+"""
+
+from __future__ import annotations
+
+import time
+import uuid
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, List, Optional
+
+from raymitsuba.util import error_message
+
+LOCAL = "local"  # the worker name of an item run in this process
+
+
+class ItemError(Exception):
+    """Raised by an item's function: the item itself is wrong (reported, never retried)."""
+
+
+@dataclass
+class Result:
+    """How one item ended (see the module docstring)."""
+
+    item: Any  # the item, as given
+    status: str = "done"  # done, error, failed or cancelled
+    value: Any = None  # fn(item), when done
+    error: Optional[str] = None  # one line, when not done
+    attempts: int = 0  # workers the item was started on
+    seconds: float = 0.0  # of the attempt that ended it, on its worker
+    worker: Optional[str] = None  # the address of that worker (LOCAL: in this process)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "done"
+
+
+def attempt(fn: Callable, item) -> tuple:
+    """Run ``fn(item)`` on a worker: (its value, the worker's address, seconds)."""
+    start = time.perf_counter()
+    value = fn(item)
+    try:
+        from distributed import get_worker
+
+        where = get_worker().address
+    except (ImportError, ValueError):
+        where = LOCAL
+    return value, where, time.perf_counter() - start
+
+
+def run_items(fn: Callable, items: Iterable, client=None, jobs: Optional[int] = None,
+              threads: Optional[int] = None, scheduler: Optional[str] = None,
+              fail_fast: bool = False,
+              on_result: Optional[Callable[[Result], None]] = None) -> List[Result]:
+    """``fn`` over ``items``: one :class:`Result` per item, in their order.
+
+    Where: ``client`` (any ``distributed.Client``), else ``scheduler`` (an address, or
+    ``DASK_SCHEDULER_ADDRESS``), else ``jobs`` local workers (default: the cores; 1: in
+    this process, no cluster); ``threads``: Dr.Jit threads per worker (see
+    :func:`raymitsuba.batch.cluster.connect`). ``on_result(result)`` is called in this
+    process as each item ends (in the order they end): where outputs are written.
+    ``fail_fast``: after the first item not done, the rest are cancelled."""
+    import os
+
+    from raymitsuba.batch import cluster
+
+    items = list(items)
+    if client is not None:
+        client.register_plugin(cluster.Setup(cluster.versions(), threads))
+        return _on_client(client, fn, items, fail_fast, on_result)
+    if jobs == 1 and not (scheduler or os.environ.get(cluster.SCHEDULER_ENV)):
+        return _in_process(fn, items, threads, fail_fast, on_result)
+    with cluster.connect(jobs, threads, scheduler) as client:
+        return _on_client(client, fn, items, fail_fast, on_result)
+
+
+def _in_process(fn, items, threads, fail_fast, on_result):
+    from raymitsuba.batch import cluster
+
+    cluster.set_threads(threads)
+    results = []
+    for item in items:
+        if fail_fast and any(not r.ok for r in results):
+            result = Result(item, "cancelled")
+        else:
+            start = time.perf_counter()
+            try:
+                value, where, seconds = attempt(fn, item)
+                result = Result(item, "done", value, None, 1, seconds, where)
+            except ItemError as e:
+                result = Result(item, "error", None, str(e), 1,
+                                time.perf_counter() - start, LOCAL)
+            except Exception as e:
+                result = Result(item, "failed", None, error_message(e), 1,
+                                time.perf_counter() - start, LOCAL)
+        results.append(result)
+        if on_result is not None:
+            on_result(result)
+    return results
+
+
+def _suspicious(dask_scheduler, key):
+    """On the scheduler: how many workers died while running task ``key``."""
+    ts = dask_scheduler.tasks.get(key)
+    return 0 if ts is None else ts.suspicious
+
+
+def _workers_died_under(client, key) -> int:
+    try:
+        return int(client.run_on_scheduler(_suspicious, key=key))
+    except Exception:  # a scheduler that cannot say: no deaths counted
+        return 0
+
+
+def _on_client(client, fn, items, fail_fast, on_result):
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
+    batch = uuid.uuid4().hex[:12]
+    futures = {client.submit(attempt, fn, item, key=f"raymitsuba-{batch}-{i}", pure=False): i
+               for i, item in enumerate(items)}
+    results: List[Optional[Result]] = [None] * len(items)
+    try:
+        for future in as_completed(list(futures)):
+            i = futures.pop(future)
+            died = _workers_died_under(client, future.key)
+            if future.status == "finished":
+                value, where, seconds = future.result()
+                result = Result(items[i], "done", value, None, died + 1, seconds, where)
+            elif future.cancelled():
+                result = Result(items[i], "cancelled")
+            else:
+                e = future.exception()
+                if isinstance(e, KilledWorker):
+                    result = Result(items[i], "failed", None,
+                                    f"killed every worker it ran on ({died})", died)
+                elif isinstance(e, ItemError):
+                    result = Result(items[i], "error", None, str(e), died + 1)
+                else:
+                    result = Result(items[i], "failed", None, error_message(e), died + 1)
+            future.release()
+            results[i] = result
+            if on_result is not None:
+                on_result(result)
+            if fail_fast and not result.ok:
+                break
+        for future, i in list(futures.items()):  # after a failure with fail_fast
+            future.cancel()
+            del futures[future]
+            results[i] = Result(items[i], "cancelled")
+            if on_result is not None:
+                on_result(results[i])
+    finally:
+        if futures:  # interrupted: nothing left running for us
+            client.cancel(list(futures))
+    return results
