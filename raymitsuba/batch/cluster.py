@@ -85,7 +85,6 @@ class Setup(WorkerPlugin):
     ``threads`` set (None: Dr.Jit's default), the kernels warmed."""
 
     name = "raymitsuba-setup"
-    idempotent = True
 
     def __init__(self, expected: dict, threads: Optional[int]):
         self.expected = expected  # the client's versions()
@@ -108,10 +107,13 @@ def default_threads(jobs: int) -> int:
 
 
 def _configure_dask() -> None:
-    """Workers spawned, never forked, whatever the Dask configuration says."""
+    """Workers spawned, never forked, whatever the Dask configuration says; a local
+    scheduler hands each worker thread one item at a time (``worker-saturation`` 1: an
+    item queued behind one that kills its worker would be counted as having killed it)."""
     import dask
 
-    dask.config.set({"distributed.worker.multiprocessing-method": "spawn"})
+    dask.config.set({"distributed.worker.multiprocessing-method": "spawn",
+                     "distributed.scheduler.worker-saturation": 1.0})
 
 
 @contextlib.contextmanager

@@ -129,6 +129,8 @@ def _workers_died_under(client, key) -> int:
 
 
 def _on_client(client, fn, items, fail_fast, on_result):
+    from concurrent.futures import CancelledError
+
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
@@ -139,21 +141,23 @@ def _on_client(client, fn, items, fail_fast, on_result):
     try:
         for future in as_completed(list(futures)):
             i = futures.pop(future)
-            died = _workers_died_under(client, future.key)
-            if future.status == "finished":
+            try:  # (waits again if the worker holding the value died meanwhile)
                 value, where, seconds = future.result()
-                result = Result(items[i], "done", value, None, died + 1, seconds, where)
-            elif future.cancelled():
+            except CancelledError:
                 result = Result(items[i], "cancelled")
+            except KilledWorker:
+                died = _workers_died_under(client, future.key)
+                result = Result(items[i], "failed", None,
+                                f"killed every worker it ran on ({died})", died)
+            except ItemError as e:
+                result = Result(items[i], "error", None, str(e),
+                                _workers_died_under(client, future.key) + 1)
+            except Exception as e:
+                result = Result(items[i], "failed", None, error_message(e),
+                                _workers_died_under(client, future.key) + 1)
             else:
-                e = future.exception()
-                if isinstance(e, KilledWorker):
-                    result = Result(items[i], "failed", None,
-                                    f"killed every worker it ran on ({died})", died)
-                elif isinstance(e, ItemError):
-                    result = Result(items[i], "error", None, str(e), died + 1)
-                else:
-                    result = Result(items[i], "failed", None, error_message(e), died + 1)
+                result = Result(items[i], "done", value, None,
+                                _workers_died_under(client, future.key) + 1, seconds, where)
             future.release()
             results[i] = result
             if on_result is not None:
