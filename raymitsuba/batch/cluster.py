@@ -137,6 +137,9 @@ def connect(jobs: Optional[int] = None, threads: Optional[int] = None,
             threads = threads or default_threads(jobs)
             cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
                                    host="127.0.0.1", dashboard_address=None,
+                                   # no dashboard; the scheduler's own HTTP routes (health)
+                                   # on a free port of 127.0.0.1
+                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                                    silence_logs=logging.CRITICAL)
             client = Client(cluster)
         try:
