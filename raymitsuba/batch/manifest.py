@@ -48,6 +48,7 @@ class Manifest:
     def write(self) -> None:
         if self.path is None:
             return
+        os.makedirs(os.path.dirname(os.path.abspath(self.path)), exist_ok=True)
         with atomic_path(self.path, ".jsonl") as tmp, open(tmp, "w") as f:
             for item in self.items:
                 f.write(json.dumps(item.record()) + "\n")

@@ -12,6 +12,9 @@ returning the output file's bytes or, with ``tiles`` N, N tasks returning bands 
   render resumes from the bands it has; the folder is removed once the output is written;
 * the manifest (:mod:`raymitsuba.batch.manifest`).
 
+An output's folder is made if it is not there (a template such as ``out/{parent}/{stem}.png``
+names folders).
+
 The image is the same, bit for bit, as ``raymitsuba render`` of the scene makes.
 """
 
@@ -218,10 +221,16 @@ def _render_indexed(indexed):
     return render(indexed[1])
 
 
+def _make_folder(path: str) -> None:
+    """The folder of an output, made if a template named one that is not there yet."""
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+
+
 def _write(item: Item, data: bytes) -> None:
     from raymitsuba import images
 
     try:
+        _make_folder(item.output)
         images.write_bytes(item.output, data)
     except OSError as e:
         item.status, item.error = "failed", f"{item.output}: cannot write: {e.strerror or e}"
@@ -234,6 +243,7 @@ def _finish(item: Item, tiles_of: _Tiled, options: dict) -> None:
     from raymitsuba import images
 
     try:
+        _make_folder(item.output)
         images.write(item.output, tiles_of.image(), srgb=bool(options.get("srgb")))
     except OSError as e:
         item.status, item.error = "failed", f"{item.output}: cannot write: {e.strerror or e}"
