@@ -65,6 +65,26 @@ def sha256_of(path: str) -> str:
     return digest.hexdigest()
 
 
+def parse(item: Item, dialect: str, report: Optional[Callable]):
+    """``item``'s scene parsed, its warnings reported; on errors, reported too, ``item``
+    marked as an error (its first error's line) and None."""
+    from raymitsuba.format import parser
+    from raymitsuba.model import RayError, Severity
+
+    try:
+        model = parser.parse_file(item.scene, dialect)
+    except RayError as e:
+        if report is not None:
+            report(e.diagnostics)
+        first = next((d for d in e.diagnostics if d.severity is Severity.ERROR),
+                     e.diagnostics[0])
+        item.status, item.error = "error", first.format().splitlines()[0]
+        return None
+    if report is not None:
+        report(model.warnings)
+    return model
+
+
 def bands(height: int, tiles: int) -> List[tuple]:
     """The rows (top, bottom) of ``tiles`` bands of nearly equal height."""
     edges = [height * k // tiles for k in range(tiles + 1)]
@@ -134,25 +154,14 @@ def render_many(scenes: Sequence, outputs: Sequence[str], client=None,
     with each scene's warnings and errors as it is parsed. ``progress(done, total)``:
     called as work ends, in scenes (pixels with tiles). ``options``: the render options,
     as :func:`raymitsuba.load` takes them."""
-    from raymitsuba.format import parser
-    from raymitsuba.model import RayError, Severity
-
     items = [Item(str(scene), str(output)) for scene, output in zip(scenes, outputs)]
     book = manifests.Manifest(manifests.default_path(list(outputs)) if manifest == ""
                               else manifest)
     tasks, owners, tiled = [], [], {}  # the tasks, their items' indices, tiled outputs
     for i, item in enumerate(items):
-        try:
-            model = parser.parse_file(item.scene, dialect)
-        except RayError as e:
-            if report is not None:
-                report(e.diagnostics)
-            first = next((d for d in e.diagnostics if d.severity is Severity.ERROR),
-                         e.diagnostics[0])
-            item.status, item.error = "error", first.format().splitlines()[0]
+        model = parse(item, dialect, report)
+        if model is None:
             continue
-        if report is not None:
-            report(model.warnings)
         if skip_existing and os.path.isfile(item.output):
             item.status, item.sha256 = "skipped", sha256_of(item.output)
             continue
@@ -221,7 +230,7 @@ def _render_indexed(indexed):
     return render(indexed[1])
 
 
-def _make_folder(path: str) -> None:
+def make_folder(path: str) -> None:
     """The folder of an output, made if a template named one that is not there yet."""
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
 
@@ -230,7 +239,7 @@ def _write(item: Item, data: bytes) -> None:
     from raymitsuba import images
 
     try:
-        _make_folder(item.output)
+        make_folder(item.output)
         images.write_bytes(item.output, data)
     except OSError as e:
         item.status, item.error = "failed", f"{item.output}: cannot write: {e.strerror or e}"
@@ -243,7 +252,7 @@ def _finish(item: Item, tiles_of: _Tiled, options: dict) -> None:
     from raymitsuba import images
 
     try:
-        _make_folder(item.output)
+        make_folder(item.output)
         images.write(item.output, tiles_of.image(), srgb=bool(options.get("srgb")))
     except OSError as e:
         item.status, item.error = "failed", f"{item.output}: cannot write: {e.strerror or e}"

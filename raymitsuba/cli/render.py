@@ -11,7 +11,7 @@ import numpy as np
 
 from raymitsuba import images
 from raymitsuba.cli.common import (EXIT_FAILURE, EXIT_SCENE_ERROR, error_message, fail,
-                                   parse_or_exit, report)
+                                   parse_or_exit, report, summarise)
 from raymitsuba.cli.options import BATCH_OPTIONS, batch_options, dialect_option, render_options
 
 COMMAND = "raymitsuba"
@@ -197,15 +197,4 @@ def render_batch(scenes, outputs, dialect, tiles, batch, options):
         fail(COMMAND, error_message(e), EXIT_FAILURE)
     finally:
         progress.close()
-    counts = {}
-    for item in items:
-        counts[item.status] = counts.get(item.status, 0) + 1
-        if item.status in ("failed", "error") and not item.error.startswith(item.scene):
-            click.echo(f"{COMMAND}: error: {item.scene}: {item.error}", err=True)
-    said = ", ".join(f"{counts[s]} {s}" for s in ("done", "skipped", "error", "failed",
-                                                   "cancelled") if s in counts)
-    click.echo(f"{COMMAND}: {len(items)} scenes: {said} (manifest: {manifest})", err=True)
-    if counts.get("error"):
-        sys.exit(EXIT_SCENE_ERROR)
-    if counts.get("failed") or counts.get("cancelled"):
-        sys.exit(EXIT_FAILURE)
+    summarise(COMMAND, items, manifest)
