@@ -9,7 +9,8 @@
 * :class:`Setup`, a worker plugin registered before any work is sent: on every worker
   (and every worker that joins later, or is restarted by its nanny) it refuses a
   raymitsuba, mitsuba or drjit version other than the client's (images must not depend on
-  where they were rendered), sets Dr.Jit's thread count and renders a tiny scene once,
+  where they were rendered) and a worker of several task threads (two renders in threads
+  of one process crash: ``dask worker --nthreads 1``), sets Dr.Jit's thread count and renders a tiny scene once,
   so that the kernels a render needs are compiled (or read from the kernel cache) before
   the first item is timed.
 
@@ -20,6 +21,7 @@ Kernel caches: Dr.Jit keeps compiled kernels in ``DRJIT_CACHE_DIR`` (default
 from __future__ import annotations
 
 import contextlib
+import gc
 import logging
 import os
 from typing import Iterator, Optional
@@ -41,6 +43,10 @@ WARM_SIZE = 8  # pixels a side
 
 class VersionMismatch(RuntimeError):
     """A worker's raymitsuba, mitsuba or drjit differs from the client's."""
+
+
+class ThreadedWorker(RuntimeError):
+    """A worker that would run several tasks at once, in threads of one process."""
 
 
 def versions() -> dict:
@@ -91,9 +97,20 @@ class Setup(WorkerPlugin):
         self.threads = threads  # Dr.Jit threads per worker (None: Dr.Jit's default)
 
     def setup(self, worker):
+        if worker.state.nthreads != 1:
+            raise ThreadedWorker(
+                f"this worker runs {worker.state.nthreads} tasks at a time; raymitsuba's "
+                "need one each (dask worker --nthreads 1; Dr.Jit's threads: --threads): "
+                "two renders in threads of one process crash")
         check_versions(self.expected)
         set_threads(self.threads)
         warm()
+
+    def teardown(self, worker):
+        # As the command line does on its way out (raymitsuba.cli.run): the objects still
+        # alive out of the cyclic collector's sight, so that the worker's interpreter
+        # does not trace them all again while it shuts down.
+        gc.freeze()
 
 
 def default_jobs() -> int:

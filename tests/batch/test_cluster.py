@@ -52,6 +52,18 @@ def test_a_worker_of_other_versions_is_refused_before_any_work(client):
     client.register_plugin(cluster.Setup(cluster.versions(), 1))  # as it was
 
 
+def test_a_worker_running_tasks_in_threads_is_refused(tmp_path):
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, host="127.0.0.1",
+                      dashboard_address=None, scheduler_kwargs={"dashboard_address":
+                                                                "127.0.0.1:0"}) as local, \
+            Client(local) as client:
+        with pytest.raises(cluster.ThreadedWorker, match="runs 2 tasks at a time"):
+            render_many(SCENES[:1], [tmp_path / "a.png"], client=client, **SIZE)
+    assert not (tmp_path / "a.png").exists()
+
+
 @pytest.fixture
 def external_cluster(tmp_path):
     """``dask scheduler`` and ``dask worker`` (the venv's), on 127.0.0.1: the address."""
