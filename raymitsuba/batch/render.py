@@ -12,6 +12,9 @@ returning the output file's bytes or, with ``tiles`` N, N tasks returning bands 
   render resumes from the bands it has; the folder is removed once the output is written;
 * the manifest (:mod:`raymitsuba.batch.manifest`).
 
+A tiled image is assembled band by band, as 8-bit values for an 8-bit format (as the
+single render encodes it chunk by chunk): the client holds what the single render does.
+
 An output's folder is made if it is not there (a template such as ``out/{parent}/{stem}.png``
 names folders).
 
@@ -129,10 +132,17 @@ class _Tiled:
         self.missing.discard(k)
         return True
 
-    def image(self) -> np.ndarray:
-        image = np.empty((self.height, self.width, 3), np.float32)
+    def image(self, encode=None) -> np.ndarray:
+        """The image, assembled from the kept bands; ``encode``: optional function of a
+        band's float values (elementwise, such as ``images.encode_8bit``) applied band by
+        band, so that an 8-bit image needs no float copy of the whole image."""
+        image = None
         for k, (top, bottom) in enumerate(self.rows):
-            image[top:bottom] = np.load(self.path(k))
+            band = np.load(self.path(k))
+            band = band if encode is None else encode(band)
+            if image is None:
+                image = np.empty((self.height, self.width, 3), band.dtype)
+            image[top:bottom] = band
         return image
 
 
@@ -154,6 +164,9 @@ def render_many(scenes: Sequence, outputs: Sequence[str], client=None,
     with each scene's warnings and errors as it is parsed. ``progress(done, total)``:
     called as work ends, in scenes (pixels with tiles). ``options``: the render options,
     as :func:`raymitsuba.load` takes them."""
+    from raymitsuba.options import RenderOptions
+
+    RenderOptions.given(**options)  # a value out of its range: OptionError, before any work
     items = [Item(str(scene), str(output)) for scene, output in zip(scenes, outputs)]
     book = manifests.Manifest(manifests.default_path(list(outputs)) if manifest == ""
                               else manifest)
@@ -253,7 +266,10 @@ def _finish(item: Item, tiles_of: _Tiled, options: dict) -> None:
 
     try:
         make_folder(item.output)
-        images.write(item.output, tiles_of.image(), srgb=bool(options.get("srgb")))
+        srgb = bool(options.get("srgb"))
+        encode = (lambda band: images.encode_8bit(band, srgb)) if images.is_8bit(item.output) \
+            else None
+        images.write(item.output, tiles_of.image(encode), srgb=srgb)
     except OSError as e:
         item.status, item.error = "failed", f"{item.output}: cannot write: {e.strerror or e}"
         return
