@@ -5,16 +5,7 @@ restart few workers; the rule tested is Dask's, whatever the count."""
 
 from __future__ import annotations
 
-import os
-
 import pytest
-
-from support import REPO
-
-#: tiny scenes of the gallery: both dialects, a texture, glass
-SCENES = [os.path.join(REPO, "scenes", name) for name in
-          ("whitted.ray", "textured_objects.ray", "mit6837_balls.ray", "primitives.ray")]
-SIZE = dict(width=32, height=24)
 
 
 @pytest.fixture(scope="session")
@@ -27,19 +18,3 @@ def client():
         with cluster.connect(jobs=2, threads=1) as c:
             c.wait_for_workers(2, timeout=60)
             yield c
-
-
-def single_render(scene, output, **options):
-    """``raymitsuba render SCENE -o OUTPUT`` (one scene: today's command), in this process."""
-    from raymitsuba.cli import main
-
-    args = ["render", str(scene), "-o", str(output)]
-    for name, value in options.items():
-        flag = "--" + name.replace("_", "-")
-        args += [flag] if value is True else [flag, str(value)]
-    try:
-        main.main(args, standalone_mode=False)
-    except SystemExit as e:
-        assert e.code in (0, None), e
-    with open(output, "rb") as f:
-        return f.read()

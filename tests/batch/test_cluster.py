@@ -14,7 +14,7 @@ import time
 import psutil
 import pytest
 
-from conftest import SCENES, SIZE, single_render
+from batch_support import SCENES, SIZE, single_render
 from raymitsuba.batch import cluster, render_many
 
 pytestmark = pytest.mark.timeout(180)

@@ -10,7 +10,7 @@ import os
 
 import pytest
 
-from conftest import SCENES, SIZE, single_render
+from batch_support import SCENES, SIZE, single_render
 from raymitsuba.batch import manifest, render_many
 from raymitsuba.batch.tasks import textures_of, with_local_textures
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from conftest import SIZE
+from batch_support import SIZE
 from raymitsuba.batch import manifest
 from raymitsuba.batch.fit import fit_many
 
