@@ -124,13 +124,10 @@ def default_threads(jobs: int) -> int:
 
 
 def _configure_dask() -> None:
-    """Workers spawned, never forked, whatever the Dask configuration says; a local
-    scheduler hands each worker thread one item at a time (``worker-saturation`` 1: an
-    item queued behind one that kills its worker would be counted as having killed it)."""
+    """Workers spawned, never forked, whatever the Dask configuration says."""
     import dask
 
-    dask.config.set({"distributed.worker.multiprocessing-method": "spawn",
-                     "distributed.scheduler.worker-saturation": 1.0})
+    dask.config.set({"distributed.worker.multiprocessing-method": "spawn"})
 
 
 @contextlib.contextmanager

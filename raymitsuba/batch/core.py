@@ -128,6 +128,14 @@ def _workers_died_under(client, key) -> int:
         return 0
 
 
+def in_flight(client) -> int:
+    """How many items the client keeps submitted: one per worker thread of the cluster now
+    (at least one). The others wait here, not in a worker's queue, where Dask would count
+    an item queued behind one that kills its worker as killed by it (and a few items are
+    not held back at the scheduler, whatever its ``worker-saturation``)."""
+    return max(sum(client.nthreads().values()), 1)
+
+
 def _on_client(client, fn, items, fail_fast, on_result):
     from concurrent.futures import CancelledError
 
@@ -135,11 +143,24 @@ def _on_client(client, fn, items, fail_fast, on_result):
     from distributed.scheduler import KilledWorker
 
     batch = uuid.uuid4().hex[:12]
-    futures = {client.submit(attempt, fn, item, key=f"raymitsuba-{batch}-{i}", pure=False): i
-               for i, item in enumerate(items)}
+    waiting = iter(range(len(items)))  # items not submitted yet
+    futures = {}  # submitted and not ended: future -> item index
+    running = as_completed()
+
+    def submit():
+        """Submit items until each worker thread of the cluster has one (see in_flight)."""
+        for i in waiting:
+            future = client.submit(attempt, fn, items[i], key=f"raymitsuba-{batch}-{i}",
+                                   pure=False)
+            futures[future] = i
+            running.add(future)
+            if len(futures) >= in_flight(client):
+                return
+
     results: List[Optional[Result]] = [None] * len(items)
     try:
-        for future in as_completed(list(futures)):
+        submit()
+        for future in running:
             i = futures.pop(future)
             try:  # (waits again if the worker holding the value died meanwhile)
                 value, where, seconds = future.result()
@@ -164,12 +185,15 @@ def _on_client(client, fn, items, fail_fast, on_result):
                 on_result(result)
             if fail_fast and not result.ok:
                 break
+            submit()
         for future, i in list(futures.items()):  # after a failure with fail_fast
             future.cancel()
             del futures[future]
-            results[i] = Result(items[i], "cancelled")
-            if on_result is not None:
-                on_result(results[i])
+        for i in range(len(items)):
+            if results[i] is None:
+                results[i] = Result(items[i], "cancelled")
+                if on_result is not None:
+                    on_result(results[i])
     finally:
         if futures:  # interrupted: nothing left running for us
             client.cancel(list(futures))

@@ -33,3 +33,13 @@ def fail_on(item):
     if item < 0:
         raise ValueError(f"negative item {item}")
     return item * item
+
+
+def render_killing_the_first_time(item):
+    """The item (marker path, RenderTask): as :func:`kill_the_first_time`, then the task's
+    render (raymitsuba.batch.tasks.render)."""
+    from raymitsuba.batch.tasks import render
+
+    marker, task = item
+    kill_the_first_time((marker, 0))
+    return render(task)

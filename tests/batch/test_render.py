@@ -7,9 +7,11 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import signal
 
 import pytest
 
+import batch_helpers
 from batch_support import SCENES, SIZE, single_render
 from raymitsuba.batch import manifest, render_many
 from raymitsuba.batch.tasks import textures_of, with_local_textures
@@ -32,6 +34,49 @@ def test_every_output_is_the_single_renders_file_bit_for_bit(client, tmp_path):
     assert sorted(line["output"] for line in lines) == sorted(map(str, outputs))
     assert all(line["status"] == "done" and line["attempts"] == 1 and
                line["worker"].startswith("tcp://127.0.0.1:") for line in lines)
+
+
+def test_a_render_whose_worker_is_killed_is_retried_to_the_same_bytes(client, tmp_path):
+    from raymitsuba.batch import run_items
+    from raymitsuba.batch.tasks import RenderTask
+
+    from raymitsuba.format import parser
+
+    tasks = [RenderTask(parser.parse_file(s), dict(SIZE), textures_of(parser.parse_file(s)),
+                        ext=".png") for s in SCENES]
+    (tmp_path / "done").touch()
+    items = [(str(tmp_path / ("first" if i == 1 else "done")), task)
+             for i, task in enumerate(tasks)]
+    results = run_items(batch_helpers.render_killing_the_first_time, items, client=client)
+    assert [r.attempts for r in results] == [1, 2, 1, 1]  # scene 1's first worker died
+    for scene, result in zip(SCENES, results):
+        assert result.value == single_render(scene, tmp_path / "single.png", **SIZE), scene
+    client.wait_for_workers(2, timeout=60)
+
+
+def test_a_worker_killed_mid_batch_loses_nothing(client, tmp_path):
+    # SIGKILL the first worker seen busy with a scene: its nanny restarts it, the scene is
+    # retried; every output is written, each the single render's file, and the manifest
+    # counts the attempts (exact counts: test_a_render_whose_worker_is_killed_...)
+    scenes = SCENES * 3
+    outputs = [tmp_path / f"{i}.png" for i in range(len(scenes))]
+    killed = []
+
+    def kill_a_busy_worker(done, total):
+        busy = [address for address, keys in client.processing().items() if keys]
+        if not killed and busy:
+            killed.extend(client.run(os.getpid, workers=busy[:1]).values())
+            os.kill(killed[0], signal.SIGKILL)
+
+    items = render_many(scenes, outputs, client=client, progress=kill_a_busy_worker, **SIZE)
+    assert len(killed) == 1
+    assert [i.status for i in items] == ["done"] * len(scenes), [i.error for i in items]
+    for scene, output in zip(scenes, outputs):
+        assert output.read_bytes() == single_render(scene, tmp_path / "single.png", **SIZE)
+    lines = manifest.read(tmp_path / manifest.NAME)
+    assert sum(line["attempts"] for line in lines) == sum(i.attempts for i in items) >= \
+        len(scenes)
+    client.wait_for_workers(2, timeout=60)
 
 
 def test_the_embedded_cluster_is_the_default(tmp_path):
