@@ -7,6 +7,9 @@ Values are linear throughout the renderer. By output extension:
   curve unless ``srgb=True``, which applies the sRGB curve (Pillow writes them);
 * ``.npy``: float32 array of shape (H, W, 3).
 
+:func:`read` reads those and whatever Pillow reads (PPM ``P3`` and ``P6``, as student
+tracers write them) as linear float32 (H, W, 3).
+
 A file is written to a temporary file in the same directory and renamed over
 the target only when complete: a failure leaves no file and never truncates an
 existing one.

@@ -125,6 +125,11 @@ class RenderOptions:
     chunk_pixels: int = option(
         0, "At most this many pixels a chunk (0: as many as the memory budget holds).",
         INTEGRATOR, int, low=0, cli=False)
+    ray_offset_scale: float = option(
+        1.0, "Secondary and shadow rays start off the surface by this many times Mitsuba's ray "
+             "epsilon (1: Mitsuba's own spawn_ray; raymitsuba compare renders 100 to find the "
+             "pixels whose value hangs on it).",
+        INTEGRATOR, float, low=0, low_open=True, cli=False)
 
     def __post_init__(self):
         for name, spec in specs():

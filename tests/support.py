@@ -239,3 +239,57 @@ FIT_MIT_SCENE = ("# MIT 6.837 / index is n_outside / n_inside\r\n"
        "sphere 0 0 0 1\r\n"
        "triangles\r\nv 0 0 -2\r\nv 1 0 -2\r\nv 0 1 -2\r\n"
        "surface 1 0 0 0.2 0.8 0 1 0 0 1\r\nf 0 1 2\r\nend\r\n")
+
+
+# -- a real browser -----------------------------------------------------------------------------
+CHROMIUM = "/usr/bin/chromium"  # Debian's; ./dev test installs it
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                  "--no-first-run", "--disable-background-networking",
+                  "--disable-component-update", "--disable-sync", "--hide-scrollbars")
+# Marks each picture's natural size on it once the page has loaded, for --dump-dom to show.
+MARK_IMAGES = """<script>
+window.addEventListener('load', () => {
+  for (const img of document.images)
+    img.setAttribute('data-loaded', img.complete ? img.naturalWidth + 'x' + img.naturalHeight : 'no');
+  document.body.setAttribute('data-marked', document.images.length);
+});
+</script>"""
+
+
+def chromium(args, folder, timeout=60):
+    """Run headless chromium with ``args`` (profile in ``folder``); its stdout. The whole
+    process group is killed if it outlives ``timeout`` seconds."""
+    import signal
+    import subprocess
+
+    command = [CHROMIUM, *CHROMIUM_FLAGS, f"--user-data-dir={folder}/profile", *args]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                               text=True, start_new_session=True)
+    try:
+        out, _ = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.communicate()
+        raise
+    finally:
+        try:  # anything it left behind in its group
+            os.killpg(process.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    return out
+
+
+def open_in_browser(html_path, folder, size=(1200, 1600)):
+    """(the page's DOM with every <img> marked ``data-loaded="WxH"`` or ``"no"``, the path
+    of a screenshot of the page) of ``html_path`` opened in headless chromium."""
+    marked = os.path.join(folder, "marked.html")
+    with open(html_path, encoding="utf-8") as f:
+        text = f.read()
+    with open(marked, "w", encoding="utf-8") as f:
+        f.write(text.replace("</body>", MARK_IMAGES + "</body>"))
+    budget = "--virtual-time-budget=5000"
+    dom = chromium([budget, "--dump-dom", "file://" + marked], folder)
+    shot = os.path.join(folder, "screenshot.png")
+    chromium([budget, f"--window-size={size[0]},{size[1]}", f"--screenshot={shot}",
+              "file://" + html_path], folder)
+    return dom, shot

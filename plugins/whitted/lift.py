@@ -20,9 +20,10 @@ import mitsuba as mi
 from .hits import SMOOTH
 
 
-def lifted_point(table, si, active):
+def lifted_point(table, si, active, offset_scale=1.0):
     """The start of the shadow rays of each hit near a terminator (None: the scene has no
-    smooth mesh). ``table``: the scene's HitTable."""
+    smooth mesh). ``table``: the scene's HitTable; ``offset_scale``: the ray epsilon's factor
+    (see ``Tracer.spawn_ray``)."""
     if not table.has_smooth:
         return None
     shape_id = dr.reinterpret_array(mi.UInt32, si.shape)
@@ -41,4 +42,5 @@ def lifted_point(table, si, active):
     for w, corner, n in zip((1.0 - w1 - w2, w1, w2), corners, normals):
         p -= w * dr.minimum(dr.dot(si.p - corner, n), 0.0) * n
     lifted = dr.select(mask, p, si.p)
-    return lifted + (1.0 + dr.max(dr.abs(lifted))) * mi.math.RayEpsilon * si.sh_frame.n
+    return lifted + (1.0 + dr.max(dr.abs(lifted))) * (mi.math.RayEpsilon * offset_scale) \
+        * si.sh_frame.n

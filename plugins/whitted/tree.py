@@ -111,11 +111,14 @@ class Tracer:
     ray that crosses more transparent surfaces than this is taken as blocked;
     ``min_weight``: a child whose path weight (the product of the kr / kt weights from
     the camera ray down to it) is not above this is not traced (0: every child of
-    weight > 0, the exact tree).
+    weight > 0, the exact tree); ``offset_scale``: secondary and shadow rays start this
+    many times Mitsuba's ray epsilon off the surface (1: ``si.spawn_ray`` itself).
     """
 
-    def __init__(self, max_depth, max_shadow_crossings, min_weight):
+    def __init__(self, max_depth, max_shadow_crossings, min_weight, offset_scale=1.0):
         self.max_depth = max_depth  # bounces after the first generation
+        # secondary and shadow rays start this many ray epsilons off the surface (see spawn_ray)
+        self.offset_scale = offset_scale
         self.max_shadow_crossings = max_shadow_crossings  # past this many, a shadow ray is blocked
         self.min_weight = min_weight  # the bailout: children of path weight <= this are not traced
         # Caches across renders, each keyed by the scene's shapes (see scene_terms):
@@ -175,8 +178,19 @@ class Tracer:
         entering = dr.dot(si.n, ray.d) < 0
         refracted_d, tir = refract(v, n, dr.select(entering, dr.rcp(eta), eta))
         weights = (kr + dr.select(tir, kt, 0.0), dr.select(tir, 0.0, kt))
-        rays = (si.spawn_ray(reflect(v, n)), si.spawn_ray(refracted_d))
+        rays = (self.spawn_ray(si, reflect(v, n)), self.spawn_ray(si, refracted_d))
         return Step(local, hit, weights, rays)
+
+    def spawn_ray(self, si, d):
+        """A ray leaving the hit ``si`` along ``d``: Mitsuba's ``si.spawn_ray``, its origin
+        moved off the surface along the geometric normal, to the side ``d`` leaves to, by
+        (1 + max |p_i|) RayEpsilon, times ``offset_scale``."""
+        if self.offset_scale == 1.0:
+            return si.spawn_ray(d)  # bit for bit what Mitsuba does
+        mag = (1.0 + dr.max(dr.abs(si.p))) * (mi.math.RayEpsilon * self.offset_scale)
+        mag = dr.detach(dr.mulsign(mag, dr.dot(si.n, d)))
+        return mi.Ray3f(dr.fma(mag, dr.detach(si.n), si.p), d, dr.largest(mi.Float), si.time,
+                        si.wavelengths)
 
     def intersect(self, scene, geometry, ray, coherent):
         """The surface interaction of each ray: by lookup in the geometry table (see
@@ -203,7 +217,7 @@ class Tracer:
         ks = surfaces.get("specular_mix", slot, hit)
         exponent = surfaces.get("phong_coeff", slot, hit)
         n, v = self.facing_normal(si, ray), -ray.d
-        lifted = lifted_point(terms.geometry, si, hit)  # see lift.py
+        lifted = lifted_point(terms.geometry, si, hit, self.offset_scale)  # see lift.py
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
@@ -214,7 +228,7 @@ class Tracer:
 
     def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None):
         """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
-        ray = si.spawn_ray(wi)
+        ray = self.spawn_ray(si, wi)
         if lifted is not None:  # see lift.py
             terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
             ray.o = dr.select(terminator, lifted, ray.o)
@@ -255,9 +269,12 @@ class Tracer:
             # Past max_shadow_crossings the light counts as blocked.
             transmittance = dr.select(onward & (crossings >= limit), 0.0, transmittance)
             p = ray(crossing.t)
-            step = (1.0 + dr.max(dr.abs(p))) * mi.math.RayEpsilon
+            step = (1.0 + dr.max(dr.abs(p))) * (mi.math.RayEpsilon * self.offset_scale)
+            # (not mi.Ray3f(o, d, maxt): with three arguments the third is the ray's *time*,
+            # and maxt stays infinite: the walk would run on past the light)
             ray = mi.Ray3f(dr.select(onward, p + step * ray.d, ray.o), ray.d,
-                           dr.select(onward, ray.maxt - crossing.t - step, ray.maxt))
+                           dr.select(onward, ray.maxt - crossing.t - step, ray.maxt),
+                           ray.time, ray.wavelengths)
             return ray, transmittance, crossings, slots, onward & (crossings < limit)
 
         slots = tuple(mi.UInt32(NO_SLOT) for _ in range(limit if record else 0))

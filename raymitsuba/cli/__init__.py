@@ -9,6 +9,7 @@ module             what it owns
 ``render``         ``raymitsuba render``
 ``fit``            ``raymitsuba fit``
 ``convert``        ``raymitsuba convert``
+``compare``        ``raymitsuba compare`` (and its batch report)
 =================  ==============================================================
 
 Every scene error is printed as ``FILE:LINE:COLUMN: error: ...`` and exits with
@@ -21,7 +22,7 @@ import gc
 
 import click
 
-from raymitsuba.cli import check, convert, fit, render
+from raymitsuba.cli import check, compare, convert, fit, render
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -34,6 +35,7 @@ main.add_command(check.check)
 main.add_command(render.render)
 main.add_command(fit.fit)
 main.add_command(convert.convert)
+main.add_command(compare.compare)
 
 
 def run():

@@ -13,7 +13,7 @@ import sys
 
 import click
 
-from raymitsuba.util import error_message  # noqa: F401 (the commands' one line for an exception)
+from raymitsuba.util import error_message  # noqa: F401  (the commands' one-line errors)
 
 EXIT_FAILURE = 1
 EXIT_SCENE_ERROR = 2

@@ -51,8 +51,8 @@ def test_every_command_has_help():
     result = run("--help")
     assert result.exit_code == 0
     assert [line.split()[0] for line in result.stdout.split("Commands:")[1].strip().splitlines()] \
-        == ["check", "convert", "fit", "render"]
-    for command in ("check", "convert", "fit", "render"):
+        == ["check", "compare", "convert", "fit", "render"]
+    for command in ("check", "compare", "convert", "fit", "render"):
         assert run(command, "--help").exit_code == 0
         # -h in a fresh process: click caches a command's help option, so a test that ran the
         # command on its own (without the group's -h) would change the answer here
