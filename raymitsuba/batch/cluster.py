@@ -21,6 +21,7 @@ Kernel caches: Dr.Jit keeps compiled kernels in ``DRJIT_CACHE_DIR`` (default
 from __future__ import annotations
 
 import contextlib
+import functools
 import gc
 import logging
 import os
@@ -49,11 +50,16 @@ class ThreadedWorker(RuntimeError):
     """A worker that would run several tasks at once, in threads of one process."""
 
 
-def versions() -> dict:
-    """{package: version} of :data:`PACKAGES` in this process."""
+@functools.lru_cache(maxsize=None)
+def _versions() -> tuple:
     from importlib.metadata import version
 
-    return {name: version(name) for name in PACKAGES}
+    return tuple((name, version(name)) for name in PACKAGES)
+
+
+def versions() -> dict:
+    """{package: version} of :data:`PACKAGES` in this process (read once)."""
+    return dict(_versions())
 
 
 def check_versions(expected: dict) -> None:

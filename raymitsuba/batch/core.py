@@ -51,8 +51,15 @@ class Result:
         return self.status == "done"
 
 
-def attempt(fn: Callable, item) -> tuple:
-    """Run ``fn(item)`` on a worker: (its value, the worker's address, seconds)."""
+def attempt(fn: Callable, item, expected: Optional[dict] = None) -> tuple:
+    """Run ``fn(item)`` on a worker: (its value, the worker's address, seconds). With the
+    client's ``expected`` versions, a worker of others refuses the item first
+    (``VersionMismatch``; a worker that joined after the batch began, whose setup refusal
+    Dask only logs)."""
+    if expected is not None:
+        from raymitsuba.batch.cluster import check_versions
+
+        check_versions(expected)
     start = time.perf_counter()
     value = fn(item)
     try:
@@ -142,7 +149,10 @@ def _on_client(client, fn, items, fail_fast, on_result):
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
+    from raymitsuba.batch.cluster import versions
+
     batch = uuid.uuid4().hex[:12]
+    expected = versions()
     waiting = iter(range(len(items)))  # items not submitted yet
     futures = {}  # submitted and not ended: future -> item index
     running = as_completed()
@@ -150,8 +160,8 @@ def _on_client(client, fn, items, fail_fast, on_result):
     def submit():
         """Submit items until each worker thread of the cluster has one (see in_flight)."""
         for i in waiting:
-            future = client.submit(attempt, fn, items[i], key=f"raymitsuba-{batch}-{i}",
-                                   pure=False)
+            future = client.submit(attempt, fn, items[i], expected,
+                                   key=f"raymitsuba-{batch}-{i}", pure=False)
             futures[future] = i
             running.add(future)
             if len(futures) >= in_flight(client):

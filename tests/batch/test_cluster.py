@@ -103,3 +103,18 @@ def test_a_cluster_started_with_dask_commands_renders_what_a_single_render_does(
     for scene, output in zip(SCENES, outputs):
         assert output.read_bytes() == single_render(scene, tmp_path / ("w" + output.suffix),
                                                     **SIZE)
+    # the command, told the address
+    result = subprocess.run(
+        [sys.executable, "-m", "raymitsuba", "render", *SCENES[2:], "-o",
+         tmp_path / "cli" / "{stem}.png", "--width", "32", "--height", "24", "--scheduler",
+         external_cluster], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    for scene in SCENES[2:]:
+        name = os.path.splitext(os.path.basename(scene))[0] + ".png"
+        assert (tmp_path / "cli" / name).read_bytes() == \
+            single_render(scene, tmp_path / "w.png", **SIZE)
+    records = [json.loads(line) for line in
+               (tmp_path / "cli" / "raymitsuba-manifest.jsonl").read_text().splitlines()]
+    with Client(external_cluster, timeout="30s") as client:
+        workers = set(client.scheduler_info()["workers"])
+    assert {r["worker"] for r in records} <= workers and len(workers) == 2

@@ -51,3 +51,14 @@ def test_an_item_that_kills_every_worker_fails_alone_with_its_reason(client):
     assert results[1].attempts == 2
     assert results[1].error == "killed every worker it ran on (2)"
     client.wait_for_workers(2, timeout=60)
+
+
+def test_a_worker_of_other_versions_refuses_each_item():
+    # what a worker that joins after the batch began does (its setup's refusal is only
+    # logged by Dask): the item is refused before it runs
+    from raymitsuba.batch.cluster import VersionMismatch, versions
+    from raymitsuba.batch.core import attempt
+
+    assert attempt(batch_helpers.fail_on, 3, versions())[0] == 9
+    with pytest.raises(VersionMismatch, match=r"drjit 1\.5\.0 \(the client has 0\.0\.1\)"):
+        attempt(batch_helpers.fail_on, 3, dict(versions(), drjit="0.0.1"))
