@@ -79,8 +79,7 @@ def run_items(fn: Callable, items: Iterable, client=None, jobs: Optional[int] = 
 
     Where: ``client`` (any ``distributed.Client``), else ``scheduler`` (an address, or
     ``DASK_SCHEDULER_ADDRESS``), else ``jobs`` local workers (default: the cores; 1: in
-    this process, no cluster; while they start, this process runs the first items
-    itself); ``threads``: Dr.Jit threads per worker (see
+    this process, no cluster); ``threads``: Dr.Jit threads per worker (see
     :func:`raymitsuba.batch.cluster.connect`). ``on_result(result)`` is called in this
     process as each item ends (in the order they end): where outputs are written.
     ``fail_fast``: after the first item not done, the rest are cancelled."""
@@ -92,71 +91,18 @@ def run_items(fn: Callable, items: Iterable, client=None, jobs: Optional[int] = 
     if client is not None:
         client.register_plugin(cluster.Setup(cluster.versions(), threads))
         return _on_client(client, fn, items, fail_fast, on_result)
-    if scheduler or os.environ.get(cluster.SCHEDULER_ENV):
-        with cluster.connect(jobs, threads, scheduler) as client:
-            return _on_client(client, fn, items, fail_fast, on_result)
-    if jobs == 1:
+    if jobs == 1 and not (scheduler or os.environ.get(cluster.SCHEDULER_ENV)):
         return _in_process(fn, items, threads, fail_fast, on_result)
-    return _while_starting(fn, items, jobs, threads, fail_fast, on_result)
+    with cluster.connect(jobs, threads, scheduler) as client:
+        return _on_client(client, fn, items, fail_fast, on_result)
 
 
-def _while_starting(fn, items, jobs, threads, fail_fast, on_result):
-    """On an embedded local cluster, started in a thread while this process runs the first
-    items itself, one at a time (its Dr.Jit threads: a worker's); the items left when the
-    workers are ready go to them. (A batch of a few small scenes is then done in about
-    the time the cluster takes to start, and never slower than without it.)"""
-    import contextlib
-    import threading
-
-    from raymitsuba.batch import cluster
-
-    jobs = jobs or cluster.default_jobs()
-    threads = threads or cluster.default_threads(jobs)
-    stack = contextlib.ExitStack()
-    started = {}
-
-    def start():
-        try:
-            started["client"] = stack.enter_context(cluster.connect(jobs, threads))
-        except BaseException as e:  # raised in the caller's thread
-            started["error"] = e
-
-    starter = threading.Thread(target=start, name="raymitsuba-cluster-start", daemon=True)
-    starter.start()
-    try:
-        done = _in_process(fn, items, threads, fail_fast, on_result,
-                           until=lambda: not starter.is_alive())
-        rest = items[len(done):]
-        if rest and fail_fast and any(not r.ok for r in done):
-            return done + _cancelled(rest, on_result)
-        starter.join()
-        if rest and "error" in started:
-            raise started["error"]
-        return done + (_on_client(started["client"], fn, rest, fail_fast, on_result)
-                       if rest else [])
-    finally:
-        starter.join()
-        stack.close()
-
-
-def _cancelled(items, on_result):
-    results = [Result(item, "cancelled") for item in items]
-    if on_result is not None:
-        for result in results:
-            on_result(result)
-    return results
-
-
-def _in_process(fn, items, threads, fail_fast, on_result, until=None):
-    """``fn`` over ``items`` in this process; ``until``: a predicate asked before each item,
-    which when true leaves the items not yet run (only the results so far are returned)."""
+def _in_process(fn, items, threads, fail_fast, on_result):
     from raymitsuba.batch import cluster
 
     cluster.set_threads(threads)
     results = []
     for item in items:
-        if until is not None and until():
-            break
         if fail_fast and any(not r.ok for r in results):
             result = Result(item, "cancelled")
         else:

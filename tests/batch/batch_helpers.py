@@ -43,16 +43,3 @@ def render_killing_the_first_time(item):
     marker, task = item
     kill_the_first_time((marker, 0))
     return render(task)
-
-
-def square_slowly_outside_workers(item):
-    """item squared, after 50 ms when not on a Dask worker (the command's own process)."""
-    import time
-
-    try:
-        from distributed import get_worker
-
-        get_worker()
-    except ValueError:
-        time.sleep(0.05)
-    return item * item

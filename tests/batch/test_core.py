@@ -18,17 +18,6 @@ def test_every_item_ends_as_one_result_in_the_items_order(client):
     assert {r.worker for r in results} <= set(client.scheduler_info()["workers"])
 
 
-def test_the_embedded_cluster_takes_over_from_this_process_once_started():
-    # this process runs items (slowly: 50 ms each) until the workers are up, which then
-    # run the rest: every item once, in order, some here and some on 127.0.0.1 workers
-    results = run_items(batch_helpers.square_slowly_outside_workers, range(300), jobs=2)
-    assert [r.value for r in results] == [i * i for i in range(300)]
-    where = [r.worker for r in results]
-    local = where.count("local")
-    assert 0 < local < 300 and where[:local] == ["local"] * local
-    assert all(w.startswith("tcp://127.0.0.1:") for w in where[local:])
-
-
 def test_one_job_runs_in_this_process_without_a_cluster():
     results = run_items(batch_helpers.fail_on, [2, -1, 3], jobs=1)
     assert [(r.status, r.value, r.worker) for r in results] == [
