@@ -11,12 +11,14 @@ module            what it owns
                   scheduler's address; the worker plugin (versions, threads, warm-up)
 ``tasks``         what a worker computes: a scene to image bytes or a band of rows
 ``render``        :func:`render_many`: parse, send, write outputs and tiles atomically
+``fit``           :func:`fit_many`: one fit per scene, each to its own target
 ``manifest``      the JSON-lines record of a batch, beside its outputs
 ``templates``     output names from a template (``out/{stem}.png``)
 ================  ===============================================================
 """
 
 from raymitsuba.batch.core import ItemError, Result, run_items
+from raymitsuba.batch.fit import fit_many
 from raymitsuba.batch.render import Item, render_many
 
-__all__ = ["render_many", "run_items", "Result", "Item", "ItemError"]
+__all__ = ["render_many", "fit_many", "run_items", "Result", "Item", "ItemError"]
