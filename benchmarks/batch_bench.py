@@ -9,7 +9,8 @@
    included): a shell loop of 24 ``raymitsuba render`` processes; one ``raymitsuba render
    SCENE... -j 1`` (in process, no cluster); one ``raymitsuba render SCENE... -j 2`` (a
    local cluster of 2 workers, one Dr.Jit thread each). Targets: -j 2 <= 0.6 x the loop
-   and <= 0.9 x -j 1.
+   and <= 0.9 x -j 1. Then -j 1 and -j 2 on 96 scenes (the sweeps repeated), to show how
+   the cluster's fixed start is amortized as the batch grows.
 2. **Cluster start + stop**: ``raymitsuba.batch.cluster.connect(jobs=2)`` entered and left
    (the workers spawned, their versions checked, their kernels warmed). Target: <= 5 s.
 3. **One big image**: ``benchmark_reflective.ray`` at 4096 x 4096 (``--quick``: 2048 x
@@ -42,22 +43,22 @@ POSTER = "benchmark_reflective.ray"
 
 
 def sweep_scene(k: int) -> str:
-    """A generated scene: a grid of 4 + k spheres over a checkerboard, reflectivity k / 10."""
+    """A generated scene: a grid of 4 + k spheres over a checkerboard, reflectivity (k mod 10) / 10."""
     lines = ["eye 0 2 7", "lookat 0 0.5 0", "fov 40", "background 0.3 0.5 0.8",
              "light 0.2 0.2 0.2 ambient", "light 0.8 0.8 0.8 point 3 6 5",
              "material 0.9 0.9 0.9 0.2 0.8 0 1 0 0 1", "checkerboard 1", "plane",
-             "checkerboard -1", f"material 0.8 0.3 0.2 0.1 0.6 0.5 40 {k / 10:.2f} 0 1"]
+             "checkerboard -1", f"material 0.8 0.3 0.2 0.1 0.6 0.5 40 {k % 10 / 10:.2f} 0 1"]
     for i in range(4 + k):
         x, z = (i % 4) * 1.2 - 1.8, -(i // 4) * 1.2
         lines += ["scale 0.5 0.5 0.5", f"translate {x:.2f} 0.5 {z:.2f}", "sphere", "pop", "pop"]
     return "\n".join(lines) + "\n"
 
 
-def scenes(work: str) -> list:
-    """The gallery's scenes, then generated sweeps, 24 in all."""
-    found = sorted(glob.glob(os.path.join(ROOT, "scenes", "*.ray")))[:SCENES]
+def scenes(work: str, count: int = SCENES) -> list:
+    """The gallery's scenes, then generated sweeps, ``count`` in all."""
+    found = sorted(glob.glob(os.path.join(ROOT, "scenes", "*.ray")))[:count]
     k = 0
-    while len(found) < SCENES:
+    while len(found) < count:
         path = os.path.join(work, f"sweep{k:02d}.ray")
         with open(path, "w") as f:
             f.write(sweep_scene(k))
@@ -86,6 +87,19 @@ def many_scenes(work: str, repeats: int) -> dict:
     os.makedirs(out, exist_ok=True)
     for _ in range(repeats):  # interleaved: the machine's load falls on each alike
         times["loop"].append(timed(["bash", "-c", loop]))
+        for jobs in ("1", "2"):
+            times["j" + jobs].append(timed([raymitsuba(), "render", *paths, "-o",
+                                            os.path.join(out, "j" + jobs + "-{stem}.png"),
+                                            *SIZE, "-j", jobs]))
+    return {name: statistics.median(t) for name, t in times.items()}
+
+
+def growth(work: str, repeats: int, count: int) -> dict:
+    """-j 1 and -j 2 on ``count`` scenes (how the cluster's fixed start is amortized)."""
+    paths = scenes(work, count)
+    out = os.path.join(work, f"out{count}")
+    times = {"j1": [], "j2": []}
+    for _ in range(repeats):
         for jobs in ("1", "2"):
             times["j" + jobs].append(timed([raymitsuba(), "render", *paths, "-o",
                                             os.path.join(out, "j" + jobs + "-{stem}.png"),
@@ -140,6 +154,10 @@ def run(quick: bool = False) -> None:
         print(f"    -j 2 / loop {t['j2'] / t['loop']:.2f} (target <= 0.6), "
               f"-j 2 / -j 1 {t['j2'] / t['j1']:.2f} (target <= 0.9), "
               f"-j 1 / loop {t['j1'] / t['loop']:.2f}")
+        big = growth(work, repeats, 4 * SCENES)
+        print(f"  {4 * SCENES} scenes: -j 1 {big['j1']:.2f} s ({4 * SCENES / big['j1']:.2f} "
+              f"scenes/s), -j 2 {big['j2']:.2f} s ({4 * SCENES / big['j2']:.2f} scenes/s), "
+              f"-j 2 / -j 1 {big['j2'] / big['j1']:.2f}")
         start_stop = cluster_start_stop(repeats)
         print(f"  cluster start + stop (2 workers, warmed): {start_stop:.2f} s (target <= 5 s)")
         size = 2048 if quick else 4096
