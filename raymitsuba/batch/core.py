@@ -172,6 +172,8 @@ def _on_client(client, fn, items, fail_fast, on_result):
         submit()
         for future in running:
             i = futures.pop(future)
+            if not fail_fast:  # the freed worker's next item first, then this one's result
+                submit()
             try:  # (waits again if the worker holding the value died meanwhile)
                 value, where, seconds = future.result()
             except CancelledError:
@@ -193,9 +195,10 @@ def _on_client(client, fn, items, fail_fast, on_result):
             results[i] = result
             if on_result is not None:
                 on_result(result)
-            if fail_fast and not result.ok:
-                break
-            submit()
+            if fail_fast:
+                if not result.ok:
+                    break
+                submit()
         for future, i in list(futures.items()):  # after a failure with fail_fast
             future.cancel()
             del futures[future]
