@@ -36,6 +36,7 @@ is within 2/255 and 8/255, and the process time relative to a 1-spp render, for 
 uniform 4 spp likewise against its own 16 x 16 supersampled render.
 
     ./dev bench --only memory,aa     # only these sections (also: table, grad)
+    ./dev bench --only batch         # batch rendering on Dask (benchmarks/batch_bench.py)
 
 Timings on shared machines are noisy: medians of several runs, and ratios of
 figures taken in the same run, are what to compare.
@@ -313,7 +314,8 @@ def main():
     ap.add_argument("--width", type=int, default=1024)
     ap.add_argument("--height", type=int, default=768)
     ap.add_argument("--only", default="table,grad,memory,aa",
-                    help="comma-separated sections: table, grad, memory, aa")
+                    help="comma-separated sections: table, grad, memory, aa, batch "
+                         "(benchmarks/batch_bench.py)")
     ap.add_argument("--huge", action="store_true",
                     help="memory section: also 16384 x 16384 at 1 spp (minutes)")
     ap.add_argument("--child", help=argparse.SUPPRESS)
@@ -337,6 +339,10 @@ def main():
         memory_section(work, args.huge)
     if "aa" in only:
         aa_section(work, repeats)
+    if "batch" in only:
+        import batch_bench
+
+        batch_bench.run(args.quick)
     shutil.rmtree(work, ignore_errors=True)
 
 

@@ -188,3 +188,29 @@ def test_the_output_buffer_guard(mi, monkeypatch):
     with pytest.raises(guards.BudgetError, match="2\\^32"):
         guards.check_image(65536, 32768, loaded.integrator.memory_budget)
     del raymitsuba
+
+
+@pytest.mark.parametrize("aa", [None, 0.02])
+def test_a_band_of_rows_is_those_rows_of_the_whole_image(mi, aa):
+    # bands of 1, 29, 17 and 1 rows (and small chunks inside them): the rows of the whole
+    # render, bit for bit; with --aa each band's edge rows are refined as in the whole image
+    import raymitsuba
+
+    loaded = raymitsuba.load(WHITTED, width=64, height=48, aa=aa)
+    whole = loaded.integrator.render_array(loaded.scene)
+    loaded.integrator.chunk_pixels = 100
+    bands = [loaded.integrator.render_array(loaded.scene, rows=rows)
+             for rows in ((0, 1), (1, 30), (30, 47), (47, 48))]
+    assert np.concatenate(bands).tobytes() == whole.tobytes()
+    if aa:  # the test means something: refinement reaches rows at the bands' edges
+        plain = raymitsuba.load(WHITTED, width=64, height=48)
+        differs = (plain.integrator.render_array(plain.scene) != whole).any(axis=(1, 2))
+        assert differs[[29, 30, 46]].any()
+
+
+def test_rows_outside_the_image_are_refused(mi):
+    import raymitsuba
+
+    loaded = raymitsuba.load(WHITTED, width=16, height=8)
+    with pytest.raises(ValueError, match="not within the image's 8 rows"):
+        loaded.integrator.render_array(loaded.scene, rows=(4, 9))
