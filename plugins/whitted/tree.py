@@ -135,6 +135,8 @@ class Tracer:
         tree, with the scene's ``terms`` (from :meth:`scene_terms`). ``max_rays``: a tree of
         more rays than this raises :class:`TreeTooLarge` (None: no limit)."""
         path_weight = mi.Float(1.0) if self.min_weight > 0 else None
+        # The bailout is data, not a constant of the kernels: a new value compiles nothing.
+        min_weight = dr.opaque(mi.Float, self.min_weight) if self.min_weight > 0 else None
         generations, rays_per_generation = [], []
         for depth in range(self.max_depth + 1):
             rays_per_generation.append(dr.width(ray))
@@ -144,7 +146,7 @@ class Tracer:
             generations.append(generation)
             if last:
                 break
-            ray, path_weight = self.spawn(generation, step, path_weight)
+            ray, path_weight = self.spawn(generation, step, path_weight, min_weight)
             if ray is None:
                 break
             if max_rays is not None and sum(rays_per_generation) + dr.width(ray) > max_rays:
@@ -266,19 +268,19 @@ class Tracer:
                                                       label="shadow ray")
         return transmittance, (slots if record else None)
 
-    def spawn(self, generation, step, path_weight=None):
+    def spawn(self, generation, step, path_weight=None, min_weight=None):
         """Record the children of ``generation`` and return their rays (None: no children)
         and, given the lanes' ``path_weight`` (detached; None: no bailout), the children's.
 
         A lane has a reflected (refracted) child where its weight is > 0 (and its path
-        weight above ``min_weight``); the children are compacted, reflected ones first,
-        into the next generation's lanes."""
+        weight above ``min_weight``, an opaque Float: the bailout); the children are
+        compacted, reflected ones first, into the next generation's lanes."""
         weight_r, weight_t = step.weight_r, step.weight_t
         has_r, has_t = step.hit & (weight_r > 0), step.hit & (weight_t > 0)
         if path_weight is not None:
             path_r = path_weight * dr.detach(weight_r)
             path_t = path_weight * dr.detach(weight_t)
-            has_r, has_t = has_r & (path_r > self.min_weight), has_t & (path_t > self.min_weight)
+            has_r, has_t = has_r & (path_r > min_weight), has_t & (path_t > min_weight)
             dr.eval(path_r, path_t)
         dr.eval(generation.local, weight_r, weight_t, has_r, has_t, step.reflected, step.refracted)
         index_r, index_t = dr.compress(has_r), dr.compress(has_t)
