@@ -25,6 +25,7 @@ import mitsuba as mi
 
 from raymitsuba.util import no_cyclic_gc
 
+from . import bailout
 from .hits import HitTable
 from .lift import lifted_point
 from .surfaces import NO_SLOT, SceneTerms, with_kt_derivative
@@ -109,15 +110,15 @@ class Tracer:
 
     ``max_depth``: bounces after the first generation; ``max_shadow_crossings``: a shadow
     ray that crosses more transparent surfaces than this is taken as blocked;
-    ``min_weight``: a child whose path weight (the product of the kr / kt weights from
-    the camera ray down to it) is not above this is not traced (0: every child of
-    weight > 0, the exact tree).
+    ``bailout``: which children are not traced (see bailout.py): None, the bounded rule;
+    0, none (every child of weight > 0: the exact tree); p > 0, those whose path weight
+    (the product of the kr / kt weights from the camera ray down to them) is at most p.
     """
 
-    def __init__(self, max_depth, max_shadow_crossings, min_weight):
+    def __init__(self, max_depth, max_shadow_crossings, bailout):
         self.max_depth = max_depth  # bounces after the first generation
         self.max_shadow_crossings = max_shadow_crossings  # past this many, a shadow ray is blocked
-        self.min_weight = min_weight  # the bailout: children of path weight <= this are not traced
+        self.bailout = bailout  # the option: None (bounded), 0 (exact) or a path weight
         # Caches across renders, each keyed by the scene's shapes (see scene_terms):
         self.geometry = HitTable()  # the geometry table: rebuilt when the shapes change
         self.surfaces = None  # the last surface table: its layout serves the same shapes again
@@ -134,9 +135,9 @@ class Tracer:
         """The :class:`Trace` of each ray of ``ray`` (one lane per ray) through its whole
         tree, with the scene's ``terms`` (from :meth:`scene_terms`). ``max_rays``: a tree of
         more rays than this raises :class:`TreeTooLarge` (None: no limit)."""
-        path_weight = mi.Float(1.0) if self.min_weight > 0 else None
-        # The bailout is data, not a constant of the kernels: a new value compiles nothing.
-        min_weight = dr.opaque(mi.Float, self.min_weight) if self.min_weight > 0 else None
+        limits = bailout.path_weight_limits(self.bailout, terms, self.max_depth,
+                                            self.max_shadow_crossings)
+        path_weight = None if limits is None else mi.Float(1.0)
         generations, rays_per_generation = [], []
         for depth in range(self.max_depth + 1):
             rays_per_generation.append(dr.width(ray))
@@ -146,7 +147,9 @@ class Tracer:
             generations.append(generation)
             if last:
                 break
-            ray, path_weight = self.spawn(generation, step, path_weight, min_weight)
+            # The limit is data, not a constant of the kernels: a new value compiles nothing.
+            limit = None if limits is None else dr.opaque(mi.Float, limits[depth])
+            ray, path_weight = self.spawn(generation, step, path_weight, limit)
             if ray is None:
                 break
             if max_rays is not None and sum(rays_per_generation) + dr.width(ray) > max_rays:

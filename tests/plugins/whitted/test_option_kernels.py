@@ -1,5 +1,6 @@
 """Option values a user changes from run to run are data of the kernels, not constants
-compiled into them: a new ``bailout`` (tree.py) or anti-aliasing threshold (antialias.py)
+compiled into them: a new ``bailout``, or a new bound of the default one (tree.py,
+bailout.py), or anti-aliasing threshold (antialias.py)
 launches the very kernels of the render before (the same Dr.Jit kernels, by hash, all
 from the cache), and a deeper ``max_depth`` runs more generations of kernels already
 compiled (integrator.py).
@@ -23,11 +24,11 @@ SCENE = spheres(5)
 SIZE = dict(width=12, height=9)
 
 
-def render(**options):
-    """(kernels launched, the integrator) of a render of SCENE with ``options``."""
+def render(scene=SCENE, **options):
+    """(kernels launched, the integrator) of a render of ``scene`` with ``options``."""
     import raymitsuba
 
-    loaded = raymitsuba.load(SCENE, **SIZE, **options)
+    loaded = raymitsuba.load(scene, **SIZE, **options)
     return kernels_launched(loaded), loaded.integrator
 
 
@@ -58,4 +59,16 @@ def test_a_deeper_tree_compiles_no_kernel(mitsuba, bailout):
     before, _ = render(max_depth=3, bailout=bailout)
     after, _ = render(max_depth=5, bailout=bailout)
     assert set(hashes(after)) <= set(hashes(before))
+    assert all(k["cache_hit"] for k in after)
+
+
+def test_a_new_bound_of_the_bounded_bailout_compiles_no_kernel(mitsuba):
+    # The default rule's limits follow the scene's lights (bailout.py): a brighter light, new
+    # limits, the same kernels
+    brighter = SCENE.replace("light 1 1 1 point", "light 1.25 1.25 1.25 point")
+    assert brighter != SCENE
+    before, first = render(max_depth=4)
+    after, second = render(brighter, max_depth=4)
+    assert second.rays_per_generation == first.rays_per_generation  # the same tree
+    assert hashes(after) == hashes(before)
     assert all(k["cache_hit"] for k in after)
