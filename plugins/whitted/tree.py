@@ -280,12 +280,16 @@ class Tracer:
         compacted, reflected ones first, into the next generation's lanes."""
         weight_r, weight_t = step.weight_r, step.weight_t
         has_r, has_t = step.hit & (weight_r > 0), step.hit & (weight_t > 0)
+        paths = ()
         if path_weight is not None:
             path_r = path_weight * dr.detach(weight_r)
             path_t = path_weight * dr.detach(weight_t)
             has_r, has_t = has_r & (path_r > min_weight), has_t & (path_t > min_weight)
-            dr.eval(path_r, path_t)
-        dr.eval(generation.local, weight_r, weight_t, has_r, has_t, step.reflected, step.refracted)
+            paths = (path_r, path_t)
+        # One evaluation of everything the step computed: one kernel intersects and shades
+        # (evaluated apart, the path weights would need that work done twice).
+        dr.eval(generation.local, weight_r, weight_t, has_r, has_t, step.reflected, step.refracted,
+                *paths)
         index_r, index_t = dr.compress(has_r), dr.compress(has_t)
         count_r, count_t = dr.width(index_r), dr.width(index_t)
         if count_r + count_t == 0:
