@@ -194,3 +194,16 @@ def test_one_comparison_and_a_batch_with_j1_do_not_import_dask(tmp_path, scene, 
     assert lines.count("exit 0") == 2 and lines[-1] == "[]", result.stdout
     rows = list(csv.DictReader((tmp_path / "s.csv").open()))
     assert [(r["status"], r["match"]) for r in rows] == [("pass", "100.000")]
+
+
+def test_a_batchs_templates_are_refused_before_anything_runs(tmp_path, scene):
+    other = tmp_path / "other.ray"
+    other.write_text(SCENE)
+    cases = [(("{student}.png", scene), "unknown placeholder {student}"),
+             (("{stem}.png", scene, other, "--diff", tmp_path / "d.png"),
+              "2 scenes need a template"),
+             (("{stem}.png", scene, "--diff", tmp_path / "no" / "{stem}.png"), "no folder")]
+    for args, message in cases:
+        result = run(*args)
+        assert result.exit_code == 2 and message in result.output, result.output
+    assert sorted(os.listdir(tmp_path)) == ["ball.ray", "other.ray"]  # nothing written
