@@ -17,8 +17,8 @@ tile, a fitted scene's text): files are written by the client only. Each item en
 ``attempts`` counts the workers an item was started on (1 plus the workers that died
 under it), ``worker`` the address of the one that finished it (``local`` in process).
 
-In this process (``jobs=1``, no scheduler) Dask is not imported: a batch of one, or
-``-j 1``, costs no more than the loop it replaces.
+In this process (``jobs=1``, no client or scheduler) Dask is not imported: ``-j 1``
+costs no more than the loop it replaces.
 """
 
 from __future__ import annotations
