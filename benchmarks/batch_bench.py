@@ -16,6 +16,11 @@
 3. **One big image**: ``benchmark_reflective.ray`` at 4096 x 4096 (``--quick``: 2048 x
    2048) to PNG on one 2-worker cluster: one task (one worker renders it all) against 8
    tiles (bands of rows over both workers). Target: tiled <= 1.1 x untiled.
+4. **Comparisons** (``raymitsuba compare 'subs/{stem}.png' SCENE... --report R --csv C``,
+   each comparison 4 renders of its scene): 24 and 96 scenes at 320 x 240 against
+   submissions rendered beforehand, ``-j 1`` (in process: the serial loop it replaces)
+   against ``-j 2``, the whole command; the two reports must be the same file.
+   ``--compare``: this part only.
 
 Throughput per worker count is scenes per second of -j 1 and -j 2. Timings on a shared
 machine are noisy: medians, and ratios of figures taken in the same run, are what to
@@ -140,11 +145,45 @@ def poster(work: str, repeats: int, size: int) -> dict:
     return {name: statistics.median(t) for name, t in times.items()}
 
 
-def run(quick: bool = False) -> None:
+COMPARE_SIZE = ("--width", "320", "--height", "240")
+
+
+def compare_batches(work: str, repeats: int, count: int) -> dict:
+    """``raymitsuba compare`` of ``count`` scenes, -j 1 and -j 2 (see the docstring)."""
+    paths = scenes(work, count)
+    subs = os.path.join(work, f"subs{count}")
+    subprocess.run([raymitsuba(), "render", *paths, "-o", os.path.join(subs, "{stem}.png"),
+                    *COMPARE_SIZE, "-j", "1"], check=True, stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL)
+    times = {"j1": [], "j2": []}
+    for _ in range(repeats):
+        for jobs in ("1", "2"):
+            report = os.path.join(work, f"compare{count}-j{jobs}.html")
+            times["j" + jobs].append(timed([raymitsuba(), "compare",
+                                            os.path.join(subs, "{stem}.png"), *paths,
+                                            "--report", report, "-j", jobs]))
+    with open(os.path.join(work, f"compare{count}-j1.html"), "rb") as a, \
+            open(os.path.join(work, f"compare{count}-j2.html"), "rb") as b:
+        assert a.read() == b.read(), "the report of -j 2 differs from that of -j 1"
+    return {name: statistics.median(t) for name, t in times.items()}
+
+
+def print_compare(work: str, repeats: int) -> None:
+    for count in (SCENES, 4 * SCENES):
+        c = compare_batches(work, repeats, count)
+        print(f"  compare {count} scenes at 320x240 (4 renders each): -j 1 {c['j1']:.2f} s "
+              f"({count / c['j1']:.2f} scenes/s), -j 2 {c['j2']:.2f} s "
+              f"({count / c['j2']:.2f} scenes/s), -j 2 / -j 1 {c['j2'] / c['j1']:.2f}; "
+              "the same report")
+
+
+def run(quick: bool = False, only_compare: bool = False) -> None:
     repeats = 3 if quick else 5
     work = tempfile.mkdtemp(prefix="raymitsuba-batch-bench-")
     try:
         print(f"batch benchmark: medians of {repeats} runs, {os.cpu_count()} cores")
+        if only_compare:
+            return print_compare(work, repeats)
         t = many_scenes(work, repeats)
         print(f"  {SCENES} scenes at 512x384, whole commands:")
         print(f"    shell loop of {SCENES} processes  {t['loop']:7.2f} s  "
@@ -165,6 +204,7 @@ def run(quick: bool = False) -> None:
         print(f"  {POSTER} {size}x{size} PNG on 2 workers: untiled {p['untiled']:.2f} s, "
               f"8 tiles {p['tiled']:.2f} s, tiled / untiled {p['tiled'] / p['untiled']:.2f} "
               "(target <= 1.1); the same file")
+        print_compare(work, repeats)
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
@@ -172,7 +212,9 @@ def run(quick: bool = False) -> None:
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats, a smaller poster")
-    run(ap.parse_args().quick)
+    ap.add_argument("--compare", action="store_true", help="only the comparisons (part 4)")
+    args = ap.parse_args()
+    run(args.quick, args.compare)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """Batch work on Dask: many scenes, one image in bands of rows, fits, from one machine to a
 cluster (``raymitsuba render SCENE... -o TEMPLATE``, ``--tiles``, ``raymitsuba fit
-SCENE...``). Dask is imported only here: a single render never loads it.
+SCENE...``, ``raymitsuba compare TEMPLATE SCENE...``). Dask is imported only here, and
+only for a cluster: a single render never loads it, nor a batch run in this process.
 
 ================  ===============================================================
 module            what it owns
@@ -12,13 +13,16 @@ module            what it owns
 ``tasks``         what a worker computes: a scene to image bytes or a band of rows
 ``render``        :func:`render_many`: parse, send, write outputs and tiles atomically
 ``fit``           :func:`fit_many`: one fit per scene, each to its own target
+``compare``       :func:`compare_many`: one comparison per scene (or image), the
+                  results to the client, which writes the report
 ``manifest``      the JSON-lines record of a batch, beside its outputs
 ``templates``     output names from a template (``out/{stem}.png``)
 ================  ===============================================================
 """
 
+from raymitsuba.batch.compare import compare_many
 from raymitsuba.batch.core import ItemError, Result, run_items
 from raymitsuba.batch.fit import fit_many
 from raymitsuba.batch.render import Item, render_many
 
-__all__ = ["render_many", "fit_many", "run_items", "Result", "Item", "ItemError"]
+__all__ = ["render_many", "fit_many", "compare_many", "run_items", "Result", "Item", "ItemError"]

@@ -29,9 +29,9 @@ from typing import Iterator, Optional
 
 from distributed import WorkerPlugin
 
+from raymitsuba.batch.core import SCHEDULER_ENV, set_threads
+
 PACKAGES = ("raymitsuba", "mitsuba", "drjit")
-#: the environment variable Dask's own tools read a scheduler's address from
-SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
 #: the scene the workers render once to warm their kernel caches (a sphere, a plane, a light)
 WARM_SCENE = """
 sphere
@@ -70,17 +70,6 @@ def check_versions(expected: dict) -> None:
     if wrong:
         raise VersionMismatch("this worker has " + ", ".join(wrong) +
                               ": images must not depend on where they were rendered")
-
-
-def set_threads(threads: Optional[int]) -> None:
-    """Dr.Jit's thread count in this process (None: Dr.Jit's default, every core)."""
-    from raymitsuba.backend import mitsuba
-
-    mitsuba(mitsuba_integrators=False)
-    import drjit as dr
-
-    if threads:
-        dr.set_thread_count(int(threads))
 
 
 def warm() -> None:

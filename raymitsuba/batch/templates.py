@@ -11,7 +11,8 @@ A template is a path with placeholders in Python's format syntax, filled for eac
 
 :func:`expand` refuses (:class:`TemplateError`, before anything runs) a template with
 another placeholder, several scenes and a template without placeholders, and two scenes
-that would write the same file.
+that would write the same file. A template may name inputs too (``raymitsuba compare
+'submissions/{stem}.png' scenes/*.ray``: the image each scene is compared with).
 """
 
 from __future__ import annotations
@@ -48,8 +49,9 @@ def fill(template: str, scene: str, index: int) -> str:
         raise TemplateError(f"{template!r}: {e}") from None
 
 
-def expand(template: str, scenes: Sequence[str]) -> List[str]:
-    """One output path per scene (see the module docstring)."""
+def expand(template: str, scenes: Sequence[str], distinct: bool = True) -> List[str]:
+    """One path per scene (see the module docstring); ``distinct``: refuse two scenes with
+    the same path (outputs; inputs may be shared)."""
     names = placeholders(template)
     unknown = sorted({n for n in names if n not in FIELDS})
     if unknown:
@@ -59,6 +61,8 @@ def expand(template: str, scenes: Sequence[str]) -> List[str]:
         raise TemplateError(f"{template!r}: {len(scenes)} scenes need a template naming each "
                             "output, e.g. 'out/{stem}.png'")
     outputs = [fill(template, scene, i) for i, scene in enumerate(scenes)]
+    if not distinct:
+        return outputs
     seen = {}
     for scene, output in zip(scenes, outputs):
         key = os.path.realpath(output)

@@ -68,7 +68,7 @@ def show(value) -> str:
 @render_options("srgb", srgb="Decode an 8-bit target (and textures) from sRGB; show the plot's "
                                  "images in sRGB.")
 @click.option("-q", "--quiet", is_flag=True, help="Print only the final summary.")
-@batch_options
+@batch_options()
 @dialect_option
 def fit(scenes, target, output, keys, iters, lr, truth, plot, quiet, dialect, **options):
     """Fit parameters of the .RAY file SCENE so that its render matches TARGET.

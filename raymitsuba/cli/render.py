@@ -70,7 +70,7 @@ class _NotYet(Exception):
               help="Render each image as N bands of rows, each a task for a worker (the same "
                    "image, bit for bit); finished bands are kept, so an interrupted render "
                    "resumes.")
-@batch_options
+@batch_options()
 @dialect_option
 def render(scenes, output, dialect, tiles, **options):
     """Render the .RAY file SCENE to OUTPUT; several SCENEs (or --tiles) in one batch on Dask

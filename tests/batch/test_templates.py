@@ -36,3 +36,11 @@ def test_two_scenes_that_would_write_one_file_are_refused(tmp_path):
 def test_an_unknown_placeholder_is_refused():
     with pytest.raises(TemplateError, match=r"unknown placeholder \{frame\}"):
         expand("{frame}.png", ["a.ray"])
+
+
+def test_a_template_of_inputs_may_name_one_file_for_several_scenes():
+    # raymitsuba compare 'subs/{parent}.png' a/x.ray a/y.ray: both compared with subs/a.png
+    assert expand("subs/{parent}.png", ["a/x.ray", "a/y.ray"], distinct=False) == [
+        "subs/a.png", "subs/a.png"]
+    with pytest.raises(TemplateError, match="unknown placeholder"):
+        expand("subs/{student}.png", ["a/x.ray"], distinct=False)
