@@ -64,6 +64,19 @@ def test_a_worker_running_tasks_in_threads_is_refused(tmp_path):
     assert not (tmp_path / "a.png").exists()
 
 
+def read_scheduler_file(file, timeout):
+    """The address in a scheduler file, once the scheduler has written it whole (the file
+    appears before its JSON is complete)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return json.loads(file.read_text())["address"]
+        except (OSError, ValueError, KeyError):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"no scheduler address in {file} after {timeout} s")
+            time.sleep(0.1)
+
+
 @pytest.fixture
 def external_cluster(tmp_path):
     """``dask scheduler`` and ``dask worker`` (the venv's), on 127.0.0.1: the address."""
@@ -75,14 +88,12 @@ def external_cluster(tmp_path):
             [dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
              "--scheduler-file", str(file)], start_new_session=True,
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        deadline = time.monotonic() + 60
-        while not file.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
+        address = read_scheduler_file(file, timeout=60)
+        # (the worker is started only once the file is whole: it reads it as soon as it exists)
         started.append(subprocess.Popen(
             [dask, "worker", "--scheduler-file", str(file), "--nworkers", "2", "--nthreads",
              "1", "--host", "127.0.0.1", "--no-dashboard"], start_new_session=True,
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        address = json.loads(file.read_text())["address"]
         assert address.startswith("tcp://127.0.0.1:")
         yield address
     finally:
