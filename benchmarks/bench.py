@@ -35,7 +35,12 @@ is within 2/255 and 8/255, and the process time relative to a 1-spp render, for 
 1, 4 and 16 spp and ``--aa``; POV-Ray's ``+A0.3`` (adaptive, its default depth 3) and its
 uniform 4 spp likewise against its own 16 x 16 supersampled render.
 
-    ./dev bench --only memory,aa     # only these sections (also: table, grad)
+    ./dev bench --only memory,aa     # only these sections (also: table, grad, deep)
+    ./dev bench --only batch         # batch rendering on Dask (benchmarks/batch_bench.py)
+
+Deep trees (``--only deep``, minutes): whitted.ray and benchmark_glass.ray at 1024 x 768,
+depth 64 with the default (bounded) bailout, against POV-Ray at the same depth with its
+default ``adc_bailout`` and against the exact tree at depth 28 (``--bailout 0``).
 
 Timings on shared machines are noisy: medians of several runs, and ratios of
 figures taken in the same run, are what to compare.
@@ -307,13 +312,56 @@ def aa_section(work, repeats, width=512, height=384):
               f" (cpu x{cpu_s / base_cpu:5.2f}; {wall_s:.2f} s)")
 
 
+def deep_section(work, repeats, width=1024, height=768, depth=64, exact_depth=28):
+    """Depth 64 with the default (bounded) bailout, against POV-Ray at the same depth with
+    its default adc_bailout, and its largest pixel error against the exact tree at
+    ``exact_depth`` (``--bailout 0``; deeper generations no longer change it: shown by the
+    exact tree 8 generations less deep). The exact renders take about a minute."""
+    import numpy as np
+
+    import raymitsuba
+    from povray import export
+
+    print(f"\ndepth {depth} at {width}x{height}, default bailout, whole processes (median of "
+          f"{repeats}), against POV-Ray (max_trace_level {depth + 1}, adc_bailout 1/255) and the "
+          f"exact tree at depth {exact_depth} (--bailout 0):")
+    size = ("--width", width, "--height", height)
+    for name in ("whitted", "benchmark_glass"):
+        path = scene_path(name)
+        out, exact, shallower = (os.path.join(work, f"{n}.npy") for n in ("deep", "ex", "ex8"))
+        cmd = render_cmd(path, out, *size, "--max-depth", depth)
+        process(cmd)  # warm the kernel cache
+        runs = [process(cmd) for _ in range(repeats)]
+        process(render_cmd(path, exact, *size, "--max-depth", exact_depth, "--bailout", 0,
+                           "--time-limit", 0))
+        process(render_cmd(path, shallower, *size, "--max-depth", exact_depth - 8, "--bailout", 0,
+                           "--time-limit", 0))
+        error = np.abs(np.load(out) - np.load(exact)).max() * 255
+        settled = np.abs(np.load(shallower) - np.load(exact)).max() * 255
+        wall_s, cpu_s = median([r[0] for r in runs]), median([r[1] for r in runs])
+        line = (f"  {name:22} {wall_s:6.2f} s (cpu {cpu_s:.2f} s, peak {median([r[2] for r in runs]):.0f} MB)"
+                f"  max error {error:.3f}/255 (exact depth {exact_depth - 8} vs {exact_depth}: "
+                f"{settled:.3f}/255)")
+        if shutil.which("povray"):
+            pov = os.path.join(work, "deep.pov")
+            with open(pov, "w") as f:
+                f.write(export(raymitsuba.parse(path), width, height, max_depth=depth))
+            pov_runs = [process(["povray", f"+I{pov}", f"+O{work}/pov.png", f"+W{width}",
+                                 f"+H{height}", "-D", "-V", "+WT2", "-A"], cwd=work)
+                        for _ in range(repeats)]
+            pov_wall = median([r[0] for r in pov_runs])
+            line += f"  POV-Ray {pov_wall:.2f} s, process / POV-Ray {wall_s / pov_wall:.2f}"
+        print(line)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer repeats")
     ap.add_argument("--width", type=int, default=1024)
     ap.add_argument("--height", type=int, default=768)
     ap.add_argument("--only", default="table,grad,memory,aa",
-                    help="comma-separated sections: table, grad, memory, aa")
+                    help="comma-separated sections: table, grad, memory, aa, deep (minutes), "
+                         "batch (benchmarks/batch_bench.py)")
     ap.add_argument("--huge", action="store_true",
                     help="memory section: also 16384 x 16384 at 1 spp (minutes)")
     ap.add_argument("--child", help=argparse.SUPPRESS)
@@ -337,6 +385,12 @@ def main():
         memory_section(work, args.huge)
     if "aa" in only:
         aa_section(work, repeats)
+    if "deep" in only:
+        deep_section(work, repeats)
+    if "batch" in only:
+        import batch_bench
+
+        batch_bench.run(args.quick)
     shutil.rmtree(work, ignore_errors=True)
 
 

@@ -46,11 +46,15 @@ PRIMITIVES = {
 }
 
 
-def export(scene: Scene, width: int, height: int) -> str:
+def export(scene: Scene, width: int, height: int, max_depth: int = 5) -> str:
+    """POV-Ray text of ``scene``; ``max_depth`` bounces after the camera ray (POV-Ray's
+    max_trace_level counts the camera ray too); POV-Ray's own adc_bailout (1/255) stays."""
     cam = scene.camera
     aspect = width / height
     fov = cam.vertical_fov(width, height)
-    lines = ["#version 3.7;", "global_settings { max_trace_level 6 assumed_gamma 1.0 ambient_light rgb 0 }",
+    lines = ["#version 3.7;",
+             f"global_settings {{ max_trace_level {max_depth + 1} assumed_gamma 1.0 "
+             "ambient_light rgb 0 }",
              f"background {{ color rgb {vec(scene.background)} }}",
              # POV-Ray is left-handed: mirror x to keep the image the same way round.
              f"camera {{ perspective location {vec(cam.eye)} look_at {vec(cam.lookat)} "

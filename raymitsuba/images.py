@@ -70,6 +70,27 @@ def write(path: str, image, srgb: bool = False) -> None:
             _write_8bit(tmp, image, srgb, "JPEG" if ext in (".jpg", ".jpeg") else "PNG")
 
 
+def encoded(image, ext: str, srgb: bool = False) -> bytes:
+    """The bytes :func:`write` would write for ``image`` to a file ending in ``ext``
+    (``".png"``...): written by :func:`write` itself into a temporary directory and read
+    back, so that a file made from them is the same, byte for byte. (A batch's workers
+    encode; only the client writes the files.)"""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="raymitsuba-") as folder:
+        path = os.path.join(folder, "image" + ext)
+        write(path, image, srgb=srgb)
+        with open(path, "rb") as f:
+            return f.read()
+
+
+def write_bytes(path: str, data: bytes) -> None:
+    """Write ``data`` (e.g. from :func:`encoded`) to ``path`` atomically."""
+    with atomic_path(path, os.path.splitext(path)[1]) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(data)
+
+
 # RLE: lossless and readable by every OpenEXR version, like ZIP, but several times less
 # CPU time to write for somewhat larger files (at most the uncompressed size).
 EXR_COMPRESSION = "RLE_COMPRESSION"

@@ -109,10 +109,12 @@ class RenderOptions:
     memory_budget: int = option(
         2 * GIB, "Memory a chunk of camera rays may take (e.g. 512M, 4G).",
         INTEGRATOR, int, low=0, low_open=True, metavar="SIZE", size=True)
-    bailout: float = option(
-        0.0, "Do not trace rays whose path weight (product of kr / kt from the camera) is at "
-             "most this (0: the exact ray tree; 1e-3 makes deep trees cheap).",
-        INTEGRATOR, float, low=0, high=1)
+    bailout: Optional[float] = option(
+        None, "Do not trace rays whose path weight (product of kr / kt from the camera) is at "
+              "most this (0: the exact ray tree). Unset: a ray is not traced when all its "
+              "subtree could add to its pixel is at most 1/1020 (a quarter of an 8-bit step), "
+              "by a bound from the scene's lights and materials (plugins/whitted/bailout.py).",
+        INTEGRATOR, float, unset="bounded", low=0, high=1)
     time_limit: float = option(
         3600.0, "Refuse renders estimated to take longer (0: no limit).",
         INTEGRATOR, float, low=0, metavar="SECONDS")

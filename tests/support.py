@@ -1,6 +1,7 @@
 """Helpers shared by several test files (``from support import ...``).
 
-* :func:`render_ray` renders .RAY text at a small size and returns a numpy (H, W, 3) array.
+* :func:`render_ray` renders .RAY text at a small size and returns a numpy (H, W, 3) array;
+  :func:`kernels_launched`, the kernels a render launched (Dr.Jit's kernel history).
 * :func:`camera_rays` is an independent implementation of the format's pixel-ray
   geometry (pixel centre (x + 0.5, y + 0.5), row 0 at the top, image right =
   normalize(view x up), vertical fov), so that a test can compute the exact expected
@@ -37,6 +38,22 @@ def render_ray(text, width=32, height=32, spp=1, max_depth=5, srgb=False,
 
     loaded = load_ray(text, width, height, spp, max_depth, srgb, dialect)
     return np.array(raymitsuba.render(loaded))
+
+
+def kernels_launched(loaded):
+    """The kernels that rendering ``loaded`` (a raymitsuba.load result) launched: Dr.Jit's
+    kernel history records (``hash``, ``operation_count``, ``cache_hit``: found in the
+    in-memory or on-disk cache, i.e. not compiled for this render, ...)."""
+    import drjit as dr
+    import raymitsuba
+
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        dr.kernel_history()  # clears it
+        dr.eval(raymitsuba.render(loaded))
+        return [k for k in dr.kernel_history() if "operation_count" in k]
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
 
 
 # -- the camera ---------------------------------------------------------------------------------

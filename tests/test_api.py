@@ -202,6 +202,6 @@ def test_render_options_reach_the_integrator():
                              bailout=1e-3, time_limit=10)
     integrator = loaded.integrator
     assert integrator.aa == pytest.approx(0.03) and integrator.memory_budget == 1 << 25
-    assert integrator.tracer.min_weight == pytest.approx(1e-3) and integrator.time_limit == 10
+    assert integrator.tracer.bailout == pytest.approx(1e-3) and integrator.time_limit == 10
     plain = raymitsuba.load("sphere\n", width=8, height=8).integrator
-    assert plain.aa == 0 and plain.tracer.min_weight == 0 and plain.time_limit == 3600
+    assert plain.aa == 0 and plain.tracer.bailout is None and plain.time_limit == 3600

@@ -37,7 +37,7 @@ ROOMS = {
     "raymitsuba": "cli", "raymitsuba.__main__": "cli",  # the package's face: entry points
 }
 PREFIXES = {"raymitsuba.format": "format", "raymitsuba.cli": "cli", "raymitsuba.compare": "library",
-            "raymitsuba.plugins": "plugins"}
+            "raymitsuba.plugins": "plugins", "raymitsuba.batch": "library"}
 
 
 def room(module: str) -> str:

@@ -13,7 +13,7 @@ from raymitsuba.options import OptionError, RenderOptions
 
 def test_the_defaults_are_the_formats_usual_render():
     o = RenderOptions()
-    assert (o.width, o.height, o.spp, o.max_depth, o.aa, o.bailout) == (None, None, 1, 5, None, 0.0)
+    assert (o.width, o.height, o.spp, o.max_depth, o.aa, o.bailout) == (None, None, 1, 5, None, None)
     assert (o.memory_budget, o.time_limit, o.srgb) == (2 << 30, 3600.0, False)
 
 
@@ -46,7 +46,7 @@ def test_the_integrator_reads_the_records_defaults_and_ranges(mitsuba):
     integrator = mitsuba.load_dict({"type": "raywhitted"})
     assert integrator.tracer.max_depth == options.default("max_depth")
     assert integrator.tracer.max_shadow_crossings == options.default("max_shadow_crossings")
-    assert integrator.tracer.min_weight == options.default("bailout")
+    assert integrator.tracer.bailout == options.default("bailout")
     assert integrator.memory_budget == options.default("memory_budget")
     assert integrator.time_limit == options.default("time_limit")
     assert integrator.aa == 0.0 and integrator.chunk_pixels is None

@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pytest
 
+from support import kernels_launched
 from test_gradients import derivatives
 
 
@@ -47,18 +48,10 @@ def grid_scene(n, lights=1, shared=False):
 def kernels_of_a_render(text, size=(12, 9)):
     """(operation count, cache hit) of each kernel that rendering ``text`` launched
     (one bounce: max_depth 1)."""
-    import drjit as dr
     import raymitsuba
 
     loaded = raymitsuba.load(text, width=size[0], height=size[1], max_depth=1)
-    dr.set_flag(dr.JitFlag.KernelHistory, True)
-    try:
-        dr.kernel_history()  # clears it
-        dr.eval(raymitsuba.render(loaded))
-        history = [k for k in dr.kernel_history() if "operation_count" in k]
-    finally:
-        dr.set_flag(dr.JitFlag.KernelHistory, False)
-    return [(k["operation_count"], bool(k["cache_hit"])) for k in history]
+    return [(k["operation_count"], bool(k["cache_hit"])) for k in kernels_launched(loaded)]
 
 
 def spheres(n, shared=False):

@@ -106,34 +106,45 @@ class Plan:
         return jobs
 
 
-def refine(image, spp, threshold, chunker, estimate):
+def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, rows=None):
     """Refine the first pass ``image`` ((H, W, 3) float32, C-contiguous, traced at ``spp``
     samples per pixel) at the contrast ``threshold``: every level's pixels are traced by
     ``chunker`` (each level first admitted by the guards' ``estimate``, its pixels being
-    known) and their values written into ``image``, in place. Returns the :class:`Plan`."""
-    height, width = image.shape[:2]
+    known) and their values written into ``image``, in place. Returns the :class:`Plan`.
+
+    A band: ``image`` holds the rows ``first_row`` .. ``first_row`` + H - 1 of an image of
+    ``height`` rows (default: H, the whole image), and only the pixels of ``rows`` (top,
+    bottom) are refined (default: all of them). A band's rows need their neighbours' rows
+    above and below (where the image has them) for the contrast test: the decisions, and
+    so the values, are then those of the whole image's render."""
+    band_height, width = image.shape[:2]
+    height = height or band_height
+    top, bottom = rows or (first_row, first_row + band_height)
     values = image.reshape(-1, 3)
-    candidates = np.flatnonzero(contrast_mask(image, threshold)).astype(np.uint32)
+    mask = contrast_mask(image, threshold)[top - first_row:bottom - first_row]
+    candidates = (np.flatnonzero(mask) + top * width).astype(np.uint32)
+    offset = first_row * width  # the pixel number of values[0]
     levels = []
     for n in LEVELS:
         if len(candidates) == 0:
             break
         estimate.admit(len(candidates), n * n)
-        spread = trace_level(chunker, Job(width, height, n * n, pixels=candidates), values)
+        spread = trace_level(chunker, Job(width, height, n * n, pixels=candidates), values,
+                             offset)
         levels.append(Level(candidates, n))
         candidates = candidates[spread > AGAIN * threshold]
     return Plan(chunker.sensor, width, height, spp, threshold, levels)
 
 
-def trace_level(chunker, job, values):
+def trace_level(chunker, job, values, offset=0):
     """Trace ``job``'s pixels through ``chunker``, each one's box-filtered value written into
-    ``values`` ((H * W, 3), by pixel number); returns the spread of each pixel's samples
+    ``values`` ((H * W, 3), by pixel number less ``offset``); returns the spread of each pixel's samples
     (their largest difference in one channel; float32, in job order)."""
     spread = np.empty(job.count, np.float32)
 
     def visit(start, count, color):
         means, spreads = pixel_means(color, count, job.spp), pixel_spread(color, count, job.spp)
-        values[job.pixels[start:start + count]] = dr.ravel(means).numpy().reshape(-1, 3)
+        values[job.pixels[start:start + count] - offset] = dr.ravel(means).numpy().reshape(-1, 3)
         spread[start:start + count] = spreads.numpy()
 
     chunker.run(job, visit)

@@ -10,7 +10,8 @@ image is the same, bit for bit, however it is split.
 BYTES_PER_RAY`` (``BYTES_PER_RAY_AD`` when the chunk is traced with AD, which keeps every
 generation's graph for the adjoint pass; both in ``guards.py``): the tracer raises
 ``TreeTooLarge`` before a generation would take the tree past it, and the chunk is then
-traced again in halves. How many pixels a chunk holds follows the largest number of rays
+traced again in halves. A chunk also holds at most ``MAX_CHUNK_LANES`` camera rays (see
+there). How many pixels a chunk holds follows the largest number of rays
 per camera ray seen so far (at first twice the probe's average: the tree's size varies
 over the image, mirrors and glass against sky), so that a chunk fits at the first
 attempt (a failed attempt is work thrown away). Everything is decided from ray counts, so
@@ -33,7 +34,11 @@ from .guards import BYTES_PER_RAY, BYTES_PER_RAY_AD, GIB, BudgetError
 from .tree import TreeTooLarge
 
 MIN_CHUNK_RAYS = 1 << 12
-MAX_CHUNK_LANES = 1 << 26  # camera rays of one chunk (far below Dr.Jit's 2^32 lanes)
+# Camera rays of one chunk, at most. A process's first render touches its chunks' memory
+# afresh (the kernel maps and zeroes every new page); later chunks, and later renders, reuse
+# it through Dr.Jit's allocation cache. Chunks of at most 2^20 camera rays keep that first
+# touch small while each kernel still has work for every core.
+MAX_CHUNK_LANES = 1 << 20
 PROBE_PIXELS = 1024
 PROBE_RAYS = 1 << 20
 

@@ -159,32 +159,48 @@ class Whitted(mi.CppADIntegrator):
             edges.backward(grad_in.numpy().reshape(-1, 3))
 
     # -- the image -----------------------------------------------------------------------------
-    def render_array(self, scene, sensor=0, spp=0, store=None):
+    def render_array(self, scene, sensor=0, spp=0, store=None, rows=None):
         """The image as a numpy float32 (H, W, 3) array, traced chunk by chunk (detached).
 
         ``store``: optional callable(first_pixel, values) that receives each chunk's pixels
         (float32, (count, 3)) instead: then nothing is assembled and None is returned
-        (not with anti-aliasing, which needs the whole first pass)."""
+        (not with anti-aliasing, which needs the whole first pass).
+
+        ``rows``: optional (top, bottom): only the image's rows top .. bottom - 1, a band
+        of (bottom - top, W, 3), the same values, bit for bit, as those rows of the whole
+        image (a pixel's value does not depend on its chunk; with anti-aliasing the first
+        pass also traces the row above and below, whose contrast decides the band's edge
+        rows). A band's render keeps no anti-aliasing plan (no adjoint pass follows it)."""
         with dr.suspend_grad():
             sensor, spp, width, height = self._setup(scene, sensor, spp)
+            top, bottom = (0, height) if rows is None else rows
+            if not 0 <= top < bottom <= height:
+                raise ValueError(f"rows {top} .. {bottom - 1} are not within the image's "
+                                 f"{height} rows")
+            # the rows traced by the first pass: the band, with its neighbours' for --aa
+            lo, hi = (max(top - 1, 0), min(bottom + 1, height)) if self.aa > 0 else (top, bottom)
             assemble = store is None or self.aa > 0
-            guards.check_image(width, height, self.memory_budget, assemble)
+            guards.check_image(width, hi - lo, self.memory_budget, assemble)
             terms = self.tracer.scene_terms(scene)
             estimate = self._estimate(scene, sensor, width, height, spp, terms)
             self.stats = RenderStats(estimate)  # (its estimate is read even if refused)
-            estimate.admit(width * height, spp)  # the first pass
+            estimate.admit(width * (hi - lo), spp)  # the first pass
             chunker = Chunker(self.tracer, scene, sensor, self.memory_budget,
                               estimate.rays_per_camera_ray, self.progress, terms,
                               self.chunk_pixels)
-            image = np.empty((width * height, 3), np.float32) if assemble else None
-            first_pass(chunker, Job(width, height, spp), assemble_into(image) if assemble
-                       else store)
+            image = np.empty((width * (hi - lo), 3), np.float32) if assemble else None
+            first_pass(chunker, Job(width, height, spp, lo * width, width * (hi - lo)),
+                       assemble_into(image) if assemble else store)
             if self.aa > 0:
-                self.plan = antialias.refine(image.reshape(height, width, 3), spp, self.aa,
-                                             chunker, estimate)
+                plan = antialias.refine(image.reshape(hi - lo, width, 3), spp, self.aa,
+                                        chunker, estimate, height, lo, (top, bottom))
+                self.plan = plan if rows is None else None
             self.stats = RenderStats(estimate, chunker.chunks_done, chunker.rays_traced,
                                      chunker.rays_per_generation)
-            return None if image is None else image.reshape(height, width, 3)
+            if image is None:
+                return None
+            image = image.reshape(hi - lo, width, 3)
+            return image if (lo, hi) == (top, bottom) else image[top - lo:bottom - lo]
 
     def render_image(self, scene, sensor=0, spp=0):
         """The (H, W, 3) image traced as one wavefront, unchunked and without anti-aliasing

@@ -53,7 +53,7 @@ class Light(Protocol):
     """A light: ambient (its ``color`` is added to the ambient term) or not (``illuminate``)."""
 
     is_ambient: bool
-    color: object  # mi.Color3f: the ambient term's intensity
+    color: object  # mi.Color3f: the ambient term's intensity; else the largest illuminate gives (bailout.py)
 
     def illuminate(self, p):
         """(wi, dist, intensity) at the points ``p``, for a light that is not ambient (see

@@ -25,6 +25,7 @@ import mitsuba as mi
 
 from raymitsuba.util import no_cyclic_gc
 
+from . import bailout
 from .hits import HitTable
 from .lift import lifted_point
 from .surfaces import NO_SLOT, SceneTerms, with_kt_derivative
@@ -109,18 +110,19 @@ class Tracer:
 
     ``max_depth``: bounces after the first generation; ``max_shadow_crossings``: a shadow
     ray that crosses more transparent surfaces than this is taken as blocked;
-    ``min_weight``: a child whose path weight (the product of the kr / kt weights from
-    the camera ray down to it) is not above this is not traced (0: every child of
-    weight > 0, the exact tree); ``offset_scale``: secondary and shadow rays start this
-    many times Mitsuba's ray epsilon off the surface (1: ``si.spawn_ray`` itself).
+    ``bailout``: which children are not traced (see bailout.py): None, the bounded rule;
+    0, none (every child of weight > 0: the exact tree); p > 0, those whose path weight
+    (the product of the kr / kt weights from the camera ray down to them) is at most p;
+    ``offset_scale``: secondary and shadow rays start this many times Mitsuba's ray
+    epsilon off the surface (1: ``si.spawn_ray`` itself).
     """
 
-    def __init__(self, max_depth, max_shadow_crossings, min_weight, offset_scale=1.0):
+    def __init__(self, max_depth, max_shadow_crossings, bailout, offset_scale=1.0):
         self.max_depth = max_depth  # bounces after the first generation
         # secondary and shadow rays start this many ray epsilons off the surface (see spawn_ray)
         self.offset_scale = offset_scale
         self.max_shadow_crossings = max_shadow_crossings  # past this many, a shadow ray is blocked
-        self.min_weight = min_weight  # the bailout: children of path weight <= this are not traced
+        self.bailout = bailout  # the option: None (bounded), 0 (exact) or a path weight
         # Caches across renders, each keyed by the scene's shapes (see scene_terms):
         self.geometry = HitTable()  # the geometry table: rebuilt when the shapes change
         self.surfaces = None  # the last surface table: its layout serves the same shapes again
@@ -140,7 +142,9 @@ class Tracer:
         """The :class:`Trace` of each ray of ``ray`` (one lane per ray) through its whole
         tree, with the scene's ``terms`` (from :meth:`scene_terms`). ``max_rays``: a tree of
         more rays than this raises :class:`TreeTooLarge` (None: no limit)."""
-        path_weight = mi.Float(1.0) if self.min_weight > 0 else None
+        limits = bailout.path_weight_limits(self.bailout, terms, self.max_depth,
+                                            self.max_shadow_crossings)
+        path_weight = None if limits is None else mi.Float(1.0)
         generations, rays_per_generation = [], []
         if self.geometry_ad is not None:  # hook (issue 13): the camera keys' derivatives
             ray = self.geometry_ad.camera_rays(ray)
@@ -152,7 +156,9 @@ class Tracer:
             generations.append(generation)
             if last:
                 break
-            ray, path_weight = self.spawn(generation, step, path_weight)
+            # The limit is data, not a constant of the kernels: a new value compiles nothing.
+            limit = None if limits is None else dr.opaque(mi.Float, limits[depth])
+            ray, path_weight = self.spawn(generation, step, path_weight, limit)
             if ray is None:
                 break
             if max_rays is not None and sum(rays_per_generation) + dr.width(ray) > max_rays:
@@ -288,21 +294,25 @@ class Tracer:
                                                       label="shadow ray")
         return transmittance, (slots if record else None)
 
-    def spawn(self, generation, step, path_weight=None):
+    def spawn(self, generation, step, path_weight=None, min_weight=None):
         """Record the children of ``generation`` and return their rays (None: no children)
         and, given the lanes' ``path_weight`` (detached; None: no bailout), the children's.
 
         A lane has a reflected (refracted) child where its weight is > 0 (and its path
-        weight above ``min_weight``); the children are compacted, reflected ones first,
-        into the next generation's lanes."""
+        weight above ``min_weight``, an opaque Float: the bailout); the children are
+        compacted, reflected ones first, into the next generation's lanes."""
         weight_r, weight_t = step.weight_r, step.weight_t
         has_r, has_t = step.hit & (weight_r > 0), step.hit & (weight_t > 0)
+        paths = ()
         if path_weight is not None:
             path_r = path_weight * dr.detach(weight_r)
             path_t = path_weight * dr.detach(weight_t)
-            has_r, has_t = has_r & (path_r > self.min_weight), has_t & (path_t > self.min_weight)
-            dr.eval(path_r, path_t)
-        dr.eval(generation.local, weight_r, weight_t, has_r, has_t, step.reflected, step.refracted)
+            has_r, has_t = has_r & (path_r > min_weight), has_t & (path_t > min_weight)
+            paths = (path_r, path_t)
+        # One evaluation of everything the step computed: one kernel intersects and shades
+        # (evaluated apart, the path weights would need that work done twice).
+        dr.eval(generation.local, weight_r, weight_t, has_r, has_t, step.reflected, step.refracted,
+                *paths)
         index_r, index_t = dr.compress(has_r), dr.compress(has_t)
         count_r, count_t = dr.width(index_r), dr.width(index_t)
         if count_r + count_t == 0:

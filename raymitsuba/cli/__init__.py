@@ -19,6 +19,12 @@ status 2; nothing in the input produces a traceback.
 from __future__ import annotations
 
 import gc
+import os
+
+# The command line's own numpy work is small (Dr.Jit renders): OpenBLAS's thread pool, which
+# numpy starts on import, buys nothing here and costs a short command's start-up a good share.
+# Set before the subcommands import numpy, unless the user chose a number.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import click
 

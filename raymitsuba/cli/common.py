@@ -42,3 +42,21 @@ def fail(command: str, message: str, code: int) -> None:
     """Print ``COMMAND: error: MESSAGE`` to stderr and exit with ``code``."""
     click.echo(f"{command}: error: {message}", err=True)
     sys.exit(code)
+
+
+def summarise(command: str, items, manifest: str) -> None:
+    """The end of a batch (raymitsuba.batch's items): a line for each item that failed (a
+    scene's own errors were reported as FILE:LINE:COLUMN already), one line of counts,
+    then exit 2 if a scene had an error, 1 if an item failed or was cancelled, else 0."""
+    counts = {}
+    for item in items:
+        counts[item.status] = counts.get(item.status, 0) + 1
+        if item.status in ("failed", "error") and not item.error.startswith(item.scene):
+            click.echo(f"{command}: error: {item.scene}: {item.error}", err=True)
+    said = ", ".join(f"{counts[s]} {s}" for s in ("done", "skipped", "error", "failed",
+                                                   "cancelled") if s in counts)
+    click.echo(f"{command}: {len(items)} scenes: {said} (manifest: {manifest})", err=True)
+    if counts.get("error"):
+        sys.exit(EXIT_SCENE_ERROR)
+    if counts.get("failed") or counts.get("cancelled"):
+        sys.exit(EXIT_FAILURE)

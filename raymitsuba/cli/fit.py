@@ -14,7 +14,7 @@ from raymitsuba import images
 from raymitsuba.cli import common
 from raymitsuba.atomic import atomic_path
 from raymitsuba.cli.common import EXIT_FAILURE, EXIT_SCENE_ERROR, report
-from raymitsuba.cli.options import dialect_option, render_options
+from raymitsuba.cli.options import BATCH_OPTIONS, batch_options, dialect_option, render_options
 
 PLOT_FORMATS = (".png", ".pdf", ".svg")
 
@@ -42,11 +42,15 @@ def show(value) -> str:
 
 
 @click.command()
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scenes", nargs=-1, required=True, type=click.Path(dir_okay=False),
+                metavar="SCENE...")
 @click.option("--target", required=True, type=click.Path(dir_okay=False),
-              help="The image to match (.exr, .npy, .png, .jpg); its size sets the render size.")
+              help="The image to match (.exr, .npy, .png, .jpg); its size sets the render size. "
+                   "With several scenes, a template ('targets/{stem}.png'; as --output).")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="The fitted scene: SCENE with only the fitted numbers changed.")
+              help="The fitted scene: SCENE with only the fitted numbers changed. With "
+                   "several scenes a template naming each: {stem}, {name}, {parent}, {index} "
+                   "(e.g. 'fitted/{stem}.ray').")
 @click.option("--params", "keys", default=None, metavar="KEY,KEY...",
               help="Parameters to fit, e.g. mat1.color,mat1.diffuse_mix,light1.color "
                    "(shell patterns such as 'mat1.*' work). Default: every material "
@@ -57,10 +61,10 @@ def show(value) -> str:
 @click.option("--lr", default=0.02, show_default=True, type=click.FloatRange(0, min_open=True),
               help="Learning rate, relative to each parameter's scale max(1, |start|).")
 @click.option("--levels", default=1, show_default=True, type=click.IntRange(1, 8),
-              help="Coarse to fine: the steps are shared among this many levels, the first "
-                   "comparing images averaged over 2^(levels-1) pixel blocks (so that an "
-                   "object far from its place in the target still gets a gradient), the last "
-                   "at full resolution.")
+              help="Coarse to fine (one scene): the steps are shared among this many levels, "
+                   "the first comparing images averaged over 2^(levels-1) pixel blocks (so that "
+                   "an object far from its place in the target still gets a gradient), the "
+                   "last at full resolution.")
 @render_options("spp", "max_depth", "aa", "memory_budget")
 @click.option("--truth", default=None, type=click.Path(dir_okay=False),
               help="The true scene (same structure): also print each parameter's error.")
@@ -69,16 +73,60 @@ def show(value) -> str:
 @render_options("srgb", srgb="Decode an 8-bit target (and textures) from sRGB; show the plot's "
                                  "images in sRGB.")
 @click.option("-q", "--quiet", is_flag=True, help="Print only the final summary.")
+@batch_options()
 @dialect_option
-def fit(scene, target, output, keys, iters, lr, levels, truth, plot, quiet, dialect,
+def fit(scenes, target, output, keys, iters, lr, levels, truth, plot, quiet, dialect,
         **options):
     """Fit parameters of the .RAY file SCENE so that its render matches TARGET.
 
     Minimises the mean squared error over pixels and channels (linear values) with
     Adam, keeping every parameter in its valid range, and writes the fitted scene to
     OUTPUT (atomically). Scene errors are reported as FILE:LINE:COLUMN and exit with
-    status 2, like unknown --params keys and unreadable targets.
+    status 2, like unknown --params keys and unreadable targets. Several SCENEs: one fit
+    each on Dask workers (as ``raymitsuba render SCENE...``), with a manifest.
     """
+    batch = {name: options.pop(name) for name in BATCH_OPTIONS}
+    if len(scenes) == 1 and not any(batch.values()) and "{" not in target + output:
+        return fit_one(scenes[0], target, output, keys, iters, lr, truth, plot, quiet,
+                       dialect, options, levels)
+    if truth is not None or plot is not None:
+        raise click.BadParameter("--truth and --plot are for one scene",
+                                 param_hint="--truth/--plot")
+    if levels != 1:
+        raise click.BadParameter("--levels is for one scene", param_hint="--levels")
+    from raymitsuba.batch.templates import TemplateError, expand, fill
+
+    try:
+        outputs = expand(output, scenes)
+        targets = [fill(target, scene, i) for i, scene in enumerate(scenes)]
+    except TemplateError as e:
+        raise click.BadParameter(str(e))
+    run_batch(scenes, targets, outputs, keys, iters, lr, dialect, batch, options)
+
+
+def run_batch(scenes, targets, outputs, keys, iters, lr, dialect, batch, options):
+    """One fit per scene on Dask workers (raymitsuba.batch.fit.fit_many): a line for each
+    that failed, a one-line summary; exit status 0, 1 (a fit failed) or 2 (a scene, its
+    parameters or its target had an error)."""
+    from raymitsuba.batch.fit import fit_many
+    from raymitsuba.batch.manifest import default_path
+
+    manifest = batch.pop("manifest") or default_path(outputs)
+    try:
+        items = fit_many(scenes, targets, outputs,
+                         keys=None if keys is None else keys.split(","), iters=iters, lr=lr,
+                         dialect=dialect, report=report, manifest=manifest, **batch, **options)
+    except KeyboardInterrupt:
+        fail("interrupted; the fitted scenes finished are kept (resume with --skip-existing)",
+             130)
+    except Exception as e:  # the cluster: no scheduler at the address, a worker refused...
+        fail(common.error_message(e), EXIT_FAILURE)
+    common.summarise("raymitsuba fit", items, manifest)
+
+
+def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, options,
+            levels=1):
+    """Today's single fit, in this process."""
     from raymitsuba import fit as fitting
 
     if plot is not None and os.path.splitext(plot)[1].lower() not in PLOT_FORMATS:

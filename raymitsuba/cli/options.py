@@ -89,3 +89,40 @@ def render_options(*names: str, **helps: str) -> Callable:
             command = render_option(name, helps.get(name))(command)
         return command
     return decorate
+
+
+#: The options of a batch (several scenes, or one image in tiles) on Dask workers, by name
+#: (as the command's keywords): where it runs and what it does about existing outputs and
+#: failures (raymitsuba.batch).
+BATCH = {
+    "jobs": click.option("-j", "--jobs", type=click.IntRange(1), default=None, metavar="N",
+                         help="Local worker processes. [default: the machine's cores; 1: "
+                              "in this process, no cluster]"),
+    "threads": click.option("--threads", type=click.IntRange(1), default=None, metavar="T",
+                            help="Dr.Jit threads per worker. [default: the cores shared out "
+                                 "among the local workers]"),
+    "scheduler": click.option("--scheduler", default=None, metavar="ADDRESS",
+                              help="A Dask scheduler's address (e.g. tcp://10.0.0.1:8786) to "
+                                   "run on instead of local workers. [default: "
+                                   "$DASK_SCHEDULER_ADDRESS]"),
+    "skip_existing": click.option("--skip-existing", is_flag=True,
+                                  help="Keep outputs that exist (they are complete: files are "
+                                       "written atomically): resume an interrupted batch."),
+    "fail_fast": click.option("--fail-fast", is_flag=True,
+                              help="Stop at the first item that fails. [default: go on]"),
+    "manifest": click.option("--manifest", default=None, type=click.Path(dir_okay=False),
+                             help="The batch's JSON-lines manifest. [default: "
+                                  "raymitsuba-manifest.jsonl beside the outputs]"),
+}
+#: the batch options' names, as the command's keywords
+BATCH_OPTIONS = tuple(BATCH)
+
+
+def batch_options(*names: str) -> Callable:
+    """A decorator adding the batch options ``names`` to a command, in that order (none
+    named: all of :data:`BATCH`)."""
+    def decorate(command):
+        for name in reversed(names or BATCH_OPTIONS):
+            command = BATCH[name](command)
+        return command
+    return decorate

@@ -11,8 +11,8 @@ import numpy as np
 
 from raymitsuba import images
 from raymitsuba.cli.common import (EXIT_FAILURE, EXIT_SCENE_ERROR, error_message, fail,
-                                   parse_or_exit, report)
-from raymitsuba.cli.options import dialect_option, render_options
+                                   parse_or_exit, report, summarise)
+from raymitsuba.cli.options import BATCH_OPTIONS, batch_options, dialect_option, render_options
 
 COMMAND = "raymitsuba"
 
@@ -58,18 +58,52 @@ class _NotYet(Exception):
 
 
 @click.command()
-@click.argument("scene", type=click.Path(dir_okay=False))
+@click.argument("scenes", nargs=-1, required=True, type=click.Path(dir_okay=False),
+                metavar="SCENE...")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
-              help="Output image: .exr (linear float), .png/.jpg (8-bit), .npy (float32 H x W x 3).")
+              help="Output image: .exr (linear float), .png/.jpg (8-bit), .npy (float32 H x W x "
+                   "3). With several scenes a template naming each: {stem}, {name}, {parent}, "
+                   "{index} (e.g. 'out/{stem}.png', 'frames/{index:04d}.png').")
 @render_options("width", "height", "spp", "max_depth", "aa", "memory_budget", "bailout",
                 "time_limit", "srgb")
+@click.option("--tiles", type=click.IntRange(1), default=None, metavar="N",
+              help="Render each image as N bands of rows, each a task for a worker (the same "
+                   "image, bit for bit); finished bands are kept, so an interrupted render "
+                   "resumes.")
+@batch_options()
 @dialect_option
-def render(scene, output, dialect, **options):
-    """Render the .RAY file SCENE to OUTPUT."""
-    try:
-        images.check_writable(output)
-    except images.ImageError as e:
-        raise click.BadParameter(str(e), param_hint="--output")
+def render(scenes, output, dialect, tiles, **options):
+    """Render the .RAY file SCENE to OUTPUT; several SCENEs (or --tiles) in one batch on Dask
+    workers, local or a cluster's."""
+    batch = {name: options.pop(name) for name in BATCH_OPTIONS}
+    outputs = output_names(output, scenes)
+    if len(scenes) == 1 and not tiles and not any(batch.values()):
+        return render_one(scenes[0], outputs[0], dialect, options)
+    render_batch(scenes, outputs, dialect, tiles, batch, options)
+
+
+def output_names(template, scenes):
+    """The output of each scene: ``template`` filled (raymitsuba.batch.templates), or a
+    usage error (status 2) before anything runs."""
+    if len(scenes) == 1 and "{" not in template:
+        names = [template]
+    else:
+        from raymitsuba.batch.templates import TemplateError, expand
+
+        try:
+            names = expand(template, scenes)
+        except TemplateError as e:
+            raise click.BadParameter(str(e), param_hint="--output")
+    for name in names:
+        try:
+            images.check_writable(name)
+        except images.ImageError as e:
+            raise click.BadParameter(str(e), param_hint="--output")
+    return names
+
+
+def render_one(scene, output, dialect, options):
+    """Today's single render, in this process."""
     model = parse_or_exit(scene, dialect)
     report(model.warnings)
     width, height = model.image_size(options["width"], options["height"])
@@ -118,3 +152,49 @@ def render(scene, output, dialect, **options):
     finally:
         progress.close()
         gc.unfreeze()
+
+
+class BatchProgress:
+    """A tqdm bar over a batch's items (pixels with tiles), on a terminal only."""
+
+    def __init__(self, unit):
+        self.unit = unit
+        self.bar = None
+
+    def __call__(self, done, total):
+        if not sys.stderr.isatty():
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc="rendering", unit=self.unit,
+                            unit_scale=self.unit == "px", leave=False)
+        self.bar.update(done - self.bar.n)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
+def render_batch(scenes, outputs, dialect, tiles, batch, options):
+    """Several scenes, or tiles, on Dask workers (raymitsuba.batch.render_many): every
+    scene parsed first (errors reported as FILE:LINE:COLUMN, those scenes not rendered), a
+    line for each item that failed, a one-line summary; exit status 0 (all rendered), 1
+    (some failed) or 2 (a scene had an error)."""
+    from raymitsuba.batch import render_many
+    from raymitsuba.batch.manifest import default_path
+
+    progress = BatchProgress("px" if tiles else "scene")
+    manifest = batch.pop("manifest") or default_path(outputs)
+    try:
+        items = render_many(scenes, outputs, tiles=tiles, dialect=dialect, report=report,
+                            progress=progress, manifest=manifest, **batch, **options)
+    except KeyboardInterrupt:
+        fail(COMMAND, "interrupted; the outputs finished are kept (resume with "
+             "--skip-existing)", 130)
+    except Exception as e:  # the cluster: no scheduler at the address, a worker refused...
+        fail(COMMAND, error_message(e), EXIT_FAILURE)
+    finally:
+        progress.close()
+    summarise(COMMAND, items, manifest)

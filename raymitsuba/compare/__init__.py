@@ -14,7 +14,8 @@ module         what it owns
 
 One comparison is :func:`compare_scene` (a scene) or :func:`compare_images` (an image):
 a pure function of its inputs and :class:`Settings` to a :class:`Result` record, which a
-batch engine may run in a worker process (everything in and out pickles). Bad inputs
+batch engine runs in a worker process (everything in and out pickles; a batch of them:
+:func:`raymitsuba.batch.compare.compare_many`). Bad inputs
 (unreadable files, scene errors, sizes that differ) give a Result with status
 ``"error"`` and a one-line message, never an exception.
 """
@@ -32,6 +33,7 @@ from raymitsuba.compare.score import TOLERANCE, CompareError, Score, difference,
 #: The default ``--min-match``: percent of the scored pixels within the tolerance.
 MIN_MATCH = 99.9
 PASS, FAIL, MISSING, ERROR = "pass", "fail", "missing", "error"
+FAILED = "failed"  # in a batch: the comparison itself failed (e.g. it killed its workers)
 
 __all__ = ["Settings", "Result", "compare_scene", "compare_images", "compare", "Score",
            "CompareError", "TOLERANCE", "MIN_MATCH", "is_scene"]
@@ -55,9 +57,10 @@ class Settings:
 
 @dataclass
 class Result:
-    """One comparison. ``status``: pass, fail, missing (no image) or error (``message``
-    says why); ``image`` and ``reference``: linear (H, W, 3) arrays and ``unstable`` the
-    left-out pixels (None where not computed); ``renders``: renders of the scene it took."""
+    """One comparison. ``status``: pass, fail, missing (no image), error (bad input) or
+    failed (in a batch: the work itself failed); ``message`` says why when not scored;
+    ``image`` and ``reference``: linear (H, W, 3) arrays and ``unstable`` the left-out
+    pixels (None where not computed); ``renders``: renders of the scene it took."""
 
     reference_name: str
     image_name: str

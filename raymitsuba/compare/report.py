@@ -29,7 +29,7 @@ table { border-collapse: collapse; }
 th, td { border: 1px solid #bbb; padding: 0.3em 0.7em; text-align: right; white-space: nowrap; }
 th:first-child, td:first-child, th:last-child, td:last-child { text-align: left; }
 .pass { background: #d8f5d8; } .fail { background: #f8d4d4; }
-.missing, .error { background: #f3e6c4; }
+.missing, .error, .failed { background: #f3e6c4; }
 .pictures { display: flex; flex-wrap: wrap; gap: 1em; }
 figure { margin: 0; } figcaption { font-weight: bold; }
 .path { font-size: 0.8em; color: #555; word-break: break-all; }

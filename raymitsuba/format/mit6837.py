@@ -13,7 +13,8 @@
   (eta = 1 / index), :data:`raymitsuba.format.commands.MIT6837_COMMANDS` says so;
 * a ``triangles`` ... ``end`` block becomes one :class:`~raymitsuba.model.TriangleMesh`
   per run of faces under one surface; faces are fanned from their first index;
-  degenerate faces (a repeated index) are skipped and counted in one warning;
+  a fan triangle with a repeated index has no area: it is skipped (the face's others are
+  kept, so ``f 1 2 3 1`` is the triangle 1 2 3) and counted in one warning;
 * the camera's ``fov`` is horizontal (``Camera.fov_axis == "x"``), default 30, the
   eye defaults to 0 0 10, and ``viewport w h`` is the default image size.
 """
@@ -55,6 +56,12 @@ def _reads_as_float(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def _fan(indices: List[int]) -> List[Tuple[int, int, int]]:
+    """The triangles of a face fanned from its first index: (i, j, k), (i, k, l), …."""
+    i0 = indices[0]
+    return [(i0, indices[k], indices[k + 1]) for k in range(1, len(indices) - 1)]
 
 
 @dataclass
@@ -232,17 +239,19 @@ class Mit6837Parser(SceneBuilder):
             return
         if None in indices:
             return
-        if len(set(indices)) < len(indices):
-            self.degenerate += 1
+        fan = _fan(indices)  # type: ignore[arg-type]
+        kept = [t for t in fan if len(set(t)) == 3]
+        if len(kept) < len(fan):
+            self.degenerate += len(fan) - len(kept)
             if self.first_degenerate is None:
                 self.first_degenerate = self._where(0)
+        if not kept:
             return
         first, run_material, line = block.runs[-1]
         if line == 0:  # the run's first face
             block.runs[-1] = (first, run_material, self._cur[0].line)
             self._note_object()
-        i0 = indices[0]
-        block.faces.extend((i0, indices[k], indices[k + 1]) for k in range(1, len(indices) - 1))
+        block.faces.extend(kept)
 
     def _index(self, k: int, count: int) -> Optional[int]:
         """Token ``k`` as a vertex index of a block of ``count`` vertices; None (reported)."""
@@ -291,9 +300,9 @@ class Mit6837Parser(SceneBuilder):
             self._close_block()
         if self.degenerate:
             ln, column, text = self.first_degenerate  # type: ignore[misc]
-            faces = "face was" if self.degenerate == 1 else "faces were"
-            self.diag.warning(ln, column, f"{self.degenerate} degenerate {faces} skipped (a "
-                                          f"repeated vertex index); this is the first", text)
+            triangles = "triangle was" if self.degenerate == 1 else "triangles were"
+            self.diag.warning(ln, column, f"{self.degenerate} degenerate fan {triangles} skipped "
+                                          f"(a repeated vertex index); this is the first", text)
         camera = self._finish_checks()
         warnings = self.diag.result()
         return Scene(file=self.file, camera=camera, background=self.background,

@@ -8,6 +8,8 @@ import csv
 import json
 import os
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -171,3 +173,37 @@ def test_batch_scores_every_scene_and_writes_a_report_that_a_browser_shows(tmp_p
     screenshot = images.read(shot)
     assert screenshot.shape[:2] == (1600, 1200)
     assert np.ptp(screenshot) > 0.5  # not a blank page
+
+
+def test_one_comparison_and_a_batch_with_j1_do_not_import_dask(tmp_path, scene, rendered):
+    # as raymitsuba render's single render: in this process, without Dask
+    (tmp_path / "subs").mkdir()
+    os.rename(rendered, tmp_path / "subs" / "ball.png")
+    code = ("import sys; from raymitsuba.cli import main\n"
+            "for args in (sys.argv[1:4], sys.argv[1:2] + sys.argv[4:]):\n"
+            "    try:\n        main(args)\n    except SystemExit as e:\n"
+            "        print('exit', e.code)\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('dask', 'distributed')))")
+    result = subprocess.run(
+        [sys.executable, "-c", code, "compare", tmp_path / "subs" / "ball.png", scene,
+         tmp_path / "subs" / "{stem}.png", scene, "-j", "1", "--csv", tmp_path / "s.csv"],
+        capture_output=True, text=True, timeout=200)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines.count("exit 0") == 2 and lines[-1] == "[]", result.stdout
+    rows = list(csv.DictReader((tmp_path / "s.csv").open()))
+    assert [(r["status"], r["match"]) for r in rows] == [("pass", "100.000")]
+
+
+def test_a_batchs_templates_are_refused_before_anything_runs(tmp_path, scene):
+    other = tmp_path / "other.ray"
+    other.write_text(SCENE)
+    cases = [(("{student}.png", scene), "unknown placeholder {student}"),
+             (("{stem}.png", scene, other, "--diff", tmp_path / "d.png"),
+              "2 scenes need a template"),
+             (("{stem}.png", scene, "--diff", tmp_path / "no" / "{stem}.png"), "no folder")]
+    for args, message in cases:
+        result = run(*args)
+        assert result.exit_code == 2 and message in result.output, result.output
+    assert sorted(os.listdir(tmp_path)) == ["ball.ray", "other.ray"]  # nothing written

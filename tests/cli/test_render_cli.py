@@ -78,10 +78,10 @@ def test_an_impossible_request_is_refused_up_front_in_one_line(tmp_path):
     assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
     assert "estimated" in result.stderr and "--time-limit" in result.stderr
     assert not out.exists()
-    # the exact tree at depth 64 through glass: refused with the way out (a bailout)
+    # the exact tree (--bailout 0) at depth 64 through glass: refused with the way out
     glass = os.path.join(ROOT, "scenes", "benchmark_glass.ray")
     result = raymitsuba("render", glass, "-o", out, "--width", 64, "--height", 48,
-                        "--max-depth", 64, "--time-limit", 60)
+                        "--max-depth", 64, "--time-limit", 60, "--bailout", 0)
     assert result.returncode == 2 and result.stderr.count("\n") == 1
     assert "--bailout" in result.stderr and not out.exists()
 

@@ -103,10 +103,18 @@ def test_another_tracers_image_scores_at_least_99_9_and_mistakes_fail_where_they
             image = independent(stack_reversed(model, text))
         else:
             image = independent(model, (bug,))
-        changed = difference(image, correct) > TOLERANCE
+        change = difference(image, correct)
+        changed = change > TOLERANCE
         wrong = score(image, ref.image, scored=scored)
-        # every scored pixel the mistake changed fails, and (but for the correct image's own
-        # few failures) no other: the heat map shows where the mistake is
-        assert abs(wrong.failed - (changed & scored).sum()) <= result.failed, (name, bug)
+        # every scored pixel the mistake changed fails, and no other: the heat map shows
+        # where the mistake is. But for the correct image's own few failures, and for the
+        # pixels whose change lies within the reference's own distance from the correct
+        # image (the default bailout's bounded error, below 1/255) of the tolerance: those
+        # may fall on either side of it.
+        own = difference(ref.image, correct)[scored]
+        margin = float(own[own <= TOLERANCE].max())
+        borderline = (np.abs(change - TOLERANCE) <= margin) & scored
+        assert abs(wrong.failed - (changed & scored).sum()) <= result.failed + borderline.sum(), \
+            (name, bug)
         if changed.mean() >= SHOWS:
             assert wrong.match < 95, (name, bug, wrong.match, changed.mean())

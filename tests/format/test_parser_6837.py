@@ -386,11 +386,32 @@ class TestMeshBlocks:
             "vertex index 1 is not defined in this block (defined so far: 0 to 0)")
         assert errors(block("f 0 0 0"))[0][2].endswith("(defined so far: none yet)")
 
-    def test_degenerate_faces_are_skipped_with_one_warning(self):
+    def test_degenerate_fan_triangles_are_skipped_with_one_warning(self):
+        # fans: (0 0 1) one degenerate; (1 2 1) one; (3 3 3 3) two; 4 in all
         scene = ok6837(block(*SQUARE, "f 0 1 2", "f 0 0 1", "f 1 2 1", "f 3 3 3 3", "f 0 2 3"))
         assert scene.meshes[0].faces == ((0, 1, 2), (0, 2, 3))
         assert [(w.line, w.column, w.message) for w in scene.warnings] == [
-            (7, 1, "3 degenerate faces were skipped (a repeated vertex index); this is the first")]
+            (7, 1, "4 degenerate fan triangles were skipped (a repeated vertex index); "
+                   "this is the first")]
+
+    def test_a_face_closed_on_its_first_vertex_keeps_its_triangle(self):
+        # `f a b c a` fans into (a b c) and the degenerate (a c a): the first is kept
+        scene = ok6837(block(*SQUARE, "f 0 1 2 0", "f 0 2 3 0"))
+        assert scene.meshes[0].faces == ((0, 1, 2), (0, 2, 3))
+        assert [(w.line, w.column, w.message) for w in scene.warnings] == [
+            (6, 1, "2 degenerate fan triangles were skipped (a repeated vertex index); "
+                   "this is the first")]
+
+    def test_only_the_degenerate_triangles_of_a_longer_fan_are_skipped(self):
+        # fan of 0 1 1 2 3: (0 1 1) degenerate, (0 1 2) and (0 2 3) kept
+        scene = ok6837(block(*SQUARE, "f 0 1 1 2 3"))
+        assert scene.meshes[0].faces == ((0, 1, 2), (0, 2, 3))
+        assert scene.warnings[0].message.startswith("1 degenerate fan triangle was skipped")
+
+    def test_a_face_of_only_degenerate_triangles_adds_nothing(self):
+        scene = ok6837(block(*SQUARE, "f 0 1 0", "f 0 1 2"))
+        assert scene.meshes[0].faces == ((0, 1, 2),)
+        assert scene.meshes[0].line == 7  # the mesh starts at its first kept face
 
     def test_v_and_f_outside_a_block(self):
         assert error("v 0 0 0\n") == (1, 1, "`v` outside a mesh block (open one with `triangles`)")

@@ -244,6 +244,23 @@ def test_triangles_are_shaded_on_both_sides():
             np.testing.assert_allclose(image, first, rtol=0, atol=1e-6)
 
 
+def test_faces_closed_on_their_first_vertex_leave_no_hole():
+    """A MIT 6.837 square written as two outlines closed on their first vertex (`f a b c a`,
+    as cow.ray writes most faces) renders bit for bit as the same square written cleanly,
+    and it covers its pixels: only the degenerate fan triangles (a c a) are skipped."""
+    def square(*faces):
+        return ("eye 0 0 10\nlight 1 1 1 ambient\nsurface 1 0 0  1 0 0 1  0 0 1\n"
+                "triangles\nv -2 -2 0\nv 2 -2 0\nv 2 2 0\nv -2 2 0\n"
+                + "".join(f + "\n" for f in faces) + "end\n")
+    closed = render_ray(square("f 0 1 2 0", "f 0 2 3 0"), 16, 16, dialect="mit6837")
+    clean = render_ray(square("f 0 1 2", "f 0 2 3"), 16, 16, dialect="mit6837")
+    assert np.array_equal(closed, clean)
+    # The square spans x, y in [-2, 2] at distance 10 with a horizontal fov of 30 degrees:
+    # 4 / (2 tan 15 * 10) = 75 % of the 16 pixels, columns and rows 2..13. Its inner 8x8
+    # pixels are ka * A * red = (1, 0, 0) exactly (no kd, ks, kr, kt).
+    np.testing.assert_array_equal(closed[4:12, 4:12].reshape(-1, 3), [[1.0, 0.0, 0.0]] * 64)
+
+
 @pytest.mark.parametrize("winding, mirrored, seen", [
     ("front", False, "refracted"), ("back", False, "reflected"), ("front", True, "refracted")])
 def test_triangle_front_side_decides_entering_or_leaving(winding, mirrored, seen):
