@@ -25,17 +25,32 @@ class Loaded:
     options: Options
     scene_dict: dict  # what mi.load_dict received
     scene: Any  # mi.Scene
+    data: Any = None  # the .RAY text (bytes) the model was parsed from, if known
     _params: Any = field(default=None, repr=False)
+    _geometry: Any = field(default=None, repr=False)
 
     @property
     def params(self):
-        """``mi.traverse(scene)`` (mi.SceneParameters), made at the first use and kept: a
-        plain render does not need it, and it visits every object of the scene."""
+        """``mi.traverse(scene)`` (mi.SceneParameters) with the geometry and camera keys
+        (:class:`raymitsuba.parameters.GeometryKeys`, when the scene's text is known), made
+        at the first use and kept: a plain render does not need it, and it visits every
+        object of the scene."""
         if self._params is None:
             from raymitsuba.backend import mitsuba
 
             self._params = mitsuba().traverse(self.scene)
+            if self.geometry is not None:
+                self.geometry.register(self._params)
         return self._params
+
+    @property
+    def geometry(self):
+        """The node of the geometry and camera keys (None: the scene's text is unknown)."""
+        if self._geometry is None and self.data is not None:
+            from raymitsuba.parameters import GeometryKeys
+
+            self._geometry = GeometryKeys(self, self.data)
+        return self._geometry
 
     @property
     def integrator(self):
@@ -48,6 +63,26 @@ def parse_any(source, dialect: str = "auto") -> Scene:
     if isinstance(source, Scene):
         return source
     return parser.parse(source, dialect)
+
+
+def source_data(source, model: Scene):
+    """The .RAY text (bytes) of ``model``, parsed from ``source`` (a path, text or the Scene
+    itself: then its file, if it can be read), or None."""
+    import os
+
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        return bytes(source)
+    path = source if isinstance(source, (str, os.PathLike)) and not isinstance(source, Scene) \
+        else model.file
+    if isinstance(path, str) and "\n" in path:  # .RAY text
+        return path.encode("utf-8", "surrogateescape")
+    try:
+        if os.path.isfile(path):
+            with open(path, "rb") as f:
+                return f.read()
+    except (OSError, TypeError, ValueError):
+        pass
+    return source.encode("utf-8", "surrogateescape") if isinstance(source, str) else None
 
 
 def load(source, width=None, height=None, spp=None, max_depth=None, srgb=None, dialect="auto",
@@ -76,7 +111,7 @@ def load(source, width=None, height=None, spp=None, max_depth=None, srgb=None, d
         # inside that wait, so 1,000 meshes nested 1,000 constructors deep (RecursionError).
         # (Parallel is also slower with the Python plugins.)
         scene = mi.load_dict(scene_dict, parallel=False)
-    return Loaded(model, options, scene_dict, scene)
+    return Loaded(model, options, scene_dict, scene, source_data(source, model))
 
 
 def render(loaded: Loaded, spp: int | None = None, params=None):

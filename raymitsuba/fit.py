@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import fnmatch
 import math
+import re
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Dict, List, Optional, Sequence, Union
@@ -58,7 +59,7 @@ from raymitsuba.format.writeback import (MATERIAL_FIELDS, ParameterError, Value,
 from raymitsuba.model import Scene
 
 __all__ = ["FitError", "FitResult", "Step", "LOWER_BOUNDS", "MATERIAL_FIELDS", "Value",
-           "clamp_value", "default_keys", "field_of", "fit", "model_values", "parameter_error",
+           "clamp_value", "coarse", "default_keys", "downsampled", "level_of", "field_of", "fit", "model_values", "parameter_error",
            "rewrite_scene", "select_keys", "set_values", "to_python", "writable_keys",
            "write_scene"]
 
@@ -67,6 +68,9 @@ LOWER_BOUNDS: Dict[str, Optional[float]] = {
     "color": 0.0, "ambient_mix": 0.0, "diffuse_mix": 0.0, "specular_mix": 0.0,
     "phong_coeff": 0.0, "reflectivity": 1e-4, "refractivity": 1e-4, "ior": 1e-3,
     "position": None, "direction": None, "shape_coefficient": 0.0,
+    # geometry and camera keys (the others -- offsets, factors, angles, corners, centres, the
+    # eye, lookat and up -- are free)
+    "radius": 1e-6, "fov": 1e-3,
 }
 
 #: What a request the fit cannot carry out raises (an unknown key, a wrong target size, a
@@ -97,11 +101,12 @@ def default_keys(model: Scene) -> List[str]:
     return keys
 
 
-def select_keys(model: Scene, requested: Optional[Sequence[str]]) -> List[str]:
+def select_keys(model: Scene, requested: Optional[Sequence[str]], data=None) -> List[str]:
     """Resolve ``requested`` (exact keys or shell patterns such as ``mat1.*``) against
-    :func:`writable_keys`; None means :func:`default_keys`. Raises FitError naming the
-    valid keys when an item matches nothing."""
-    valid = writable_keys(model)
+    :func:`writable_keys` (with the file's text ``data``, the geometry and camera keys too);
+    None means :func:`default_keys`. Raises FitError naming the valid keys when an item
+    matches nothing."""
+    valid = writable_keys(model, data)
     if requested is None:
         return default_keys(model)
     keys: List[str] = []
@@ -194,14 +199,18 @@ class FitResult:
 def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
         lr: float = 0.02, spp: Optional[int] = None,
         callback: Optional[Callable[[Step], Optional[bool]]] = None,
-        final_lr: float = 0.1) -> FitResult:
+        final_lr: float = 0.1, levels: int = 1) -> FitResult:
     """Fit the parameters ``keys`` of ``loaded`` (see :func:`raymitsuba.load`) to the linear
     (H, W, 3) image ``target`` by Adam on the mean squared error; ``iters`` steps of
     learning rate ``lr`` (relative, see the module docstring), decaying geometrically to
     ``final_lr * lr`` at the last step. ``callback(step)`` runs after
     each iteration; returning True stops the fit early. The scene's parameters hold the
     fitted values afterwards. ``keys`` None: :func:`default_keys`; any differentiable key
-    of ``loaded.params`` is accepted (e.g. ``background.color``, clamped >= 0)."""
+    of ``loaded.params`` is accepted (e.g. ``background.color``, clamped >= 0).
+
+    ``levels`` > 1: coarse to fine (see :func:`level_of`): the first steps compare the
+    render and the target averaged over blocks of 2^(levels - 1) pixels, then 2^(levels -
+    2)..., the last share at full resolution."""
     import drjit as dr
 
     from raymitsuba.api import render
@@ -215,6 +224,8 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     for key in keys:
         if key not in params:
             raise FitError(f"unknown parameter `{key}`; valid keys: {', '.join(params.keys())}")
+        if loaded.geometry is not None and key in loaded.geometry.values:
+            loaded.geometry.check(key)  # (a FitError: a key that cannot move, and why)
     target = np.asarray(target, dtype=np.float32)
     shape = (loaded.options.height, loaded.options.width, 3)
     if target.shape != shape:
@@ -239,12 +250,19 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     # The steps render and update through the fitted parameters only: Mitsuba's render and
     # update visit every parameter they are given, 8 per material of the scene.
     fitted = mi.traverse(loaded.scene)
-    fitted.keep(keys)
+    if loaded.geometry is not None:  # the geometry and camera keys
+        loaded.geometry.register(fitted)
+    fitted.keep([re.escape(key) + "$" for key in keys])
 
     result = FitResult(keys=keys, start=start, fitted=dict(start))
     for iteration in range(iters):
         image = render(loaded, spp=spp, params=fitted)
-        loss = dr.mean(dr.square(image - target_tensor), axis=None)
+        factor = 2 ** level_of(iteration, iters, levels)
+        if factor > 1:
+            loss = dr.mean(dr.square(downsampled(mi, image, factor) - coarse(target, factor)),
+                           axis=None)
+        else:
+            loss = dr.mean(dr.square(image - target_tensor), axis=None)
         dr.backward(loss)
         loss_value = float(loss.numpy().ravel()[0])
         if iteration == 0:
@@ -281,6 +299,41 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     result.final_loss = float(np.mean(np.square(final.astype(np.float64) - target)))
     result.seconds = time.perf_counter() - started
     return result
+
+
+def level_of(iteration: int, iters: int, levels: int) -> int:
+    """**Coarse to fine**: the pyramid level of step ``iteration`` (0-based) of ``iters``:
+    the steps are shared equally among ``levels`` levels, coarsest first; level L compares
+    images averaged over 2^L x 2^L blocks of pixels. An edge that the target and the start
+    place in different pixels gives an L2 loss that does not see which way to move it
+    (the two do not overlap); averaged over larger blocks they do, and the gradient points
+    the right way; the full resolution then places it exactly."""
+    if levels <= 1 or iters <= 0:
+        return 0
+    return levels - 1 - min(iteration * levels // iters, levels - 1)
+
+
+def coarse(image, factor):
+    """The (H, W, 3) numpy ``image`` averaged over factor x factor blocks (the last, partial
+    rows and columns dropped)."""
+    h, w = image.shape[0] // factor, image.shape[1] // factor
+    return image[:h * factor, :w * factor].reshape(h, factor, w, factor, 3).mean(axis=(1, 3))
+
+
+def downsampled(mi, image, factor):
+    """:func:`coarse` of a Dr.Jit TensorXf (H, W, 3), differentiable: gathers and sums."""
+    import drjit as dr
+
+    height, width = image.shape[0], image.shape[1]
+    h, w = height // factor, width // factor
+    y, x, c = np.meshgrid(np.arange(h), np.arange(w), np.arange(3), indexing="ij")
+    total = None
+    for dy in range(factor):
+        for dx in range(factor):
+            index = ((y * factor + dy) * width + (x * factor + dx)) * 3 + c
+            part = dr.gather(mi.Float, image.array, mi.UInt32(index.ravel().astype(np.uint32)))
+            total = part if total is None else total + part
+    return mi.TensorXf(total * (1.0 / (factor * factor)), shape=(h, w, 3))
 
 
 def typed(mi, like, value: Value):

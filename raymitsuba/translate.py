@@ -183,11 +183,67 @@ class Surfaces:
             if obj.texture is not None:
                 surface["texture"] = {"type": "bitmap", "filename": obj.texture.path,
                                       "raw": not self.options.srgb, "wrap_mode": "repeat",
-                                      "filter_type": "bilinear", "to_uv": uv_to_image(self.mi)}
+                                      "filter_type": "bilinear",
+                                      "to_uv": None if self.mi is HOST else uv_to_image(self.mi)}
             if obj.checker is not None:
                 surface["checker"] = {"type": "raychecker", "size": float(obj.checker)}
             self.dicts[surface_id] = surface
         return self.ids[key]
+
+
+# -- the geometry on the host: what the parameter keys move ------------------------------------
+class HOST:
+    """The translator's host mode, in place of the ``mitsuba`` module: the dict is built by the
+    same code with numpy values (no Mitsuba object), so that a key's effect on every shape is
+    read from the translation itself (:func:`shape_geometry`)."""
+
+    Float = UInt32 = staticmethod(np.asarray)
+    ScalarColor3f = ScalarPoint3f = ScalarVector3f = staticmethod(lambda *v: tuple(v))
+
+    @staticmethod
+    def ScalarTransform4f(m=None):  # noqa: N802 (Mitsuba's name)
+        return np.asarray(m, dtype=np.float64)
+
+
+def shape_geometry(model: Scene, options: Options) -> dict:
+    """What each shape of the translation of ``model`` is, by shape id, as the parameter keys
+    see it: ``("sphere", center (3,), radius, to_world (4, 4))`` for Mitsuba's analytic spheres
+    (float64; the centre is the translation of to_world, the radius the length of its first
+    column), ``("mesh", positions (3 V,) float32)`` for the flat ``raytriangles`` meshes of
+    ``triangle`` lines and MIT 6.837 mesh blocks (their vertex positions, as the mesh holds
+    them), and ``("fixed", kind)`` for the shapes that no key may move (planes, tessellated
+    objects: their meshes are rebuilt from the camera and the tessellation budget, so they
+    cannot move without changing their representation).
+
+    A transform key moves every object under it on the stack: the model the key's new value
+    gives (the text rewritten, parsed again) is translated again and compared shape by shape."""
+    width, height = model.image_size(options.width, options.height)
+    options = dataclasses.replace(options, width=width, height=height)
+    out = {}
+    for name, shape in (shapes(model, options, Surfaces(options, HOST), HOST)
+                        | mesh_shapes(model, HOST)).items():
+        if shape["type"] == "sphere":
+            m = shape["to_world"]
+            out[name] = ("sphere", m[:3, 3].copy(), float(np.linalg.norm(m[:3, 0])), m)
+        elif shape["type"] == "raytriangles" and "normals" not in shape:
+            out[name] = ("mesh", np.asarray(shape["positions"], np.float32))
+        else:
+            out[name] = ("fixed", shape["type"], _fingerprint(shape))
+    return out
+
+
+def _fingerprint(shape: dict) -> tuple:
+    """The numbers of a shape's dict (to tell whether a key changed it)."""
+    return tuple((k, np.asarray(v).tobytes()) for k, v in sorted(shape.items())
+                 if isinstance(v, (np.ndarray, float, int)))
+
+
+def camera_geometry(model: Scene, options: Options):
+    """(eye, lookat, up, vertical fov in degrees) of the camera, as the sensor is built."""
+    camera = model.camera
+    width, height = model.image_size(options.width, options.height)
+    return (np.array(camera.eye, np.float64), np.array(camera.lookat, np.float64),
+            np.array(camera.up, np.float64), float(camera.vertical_fov(width, height)))
 
 
 # -- shapes -------------------------------------------------------------------------------------

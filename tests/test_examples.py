@@ -11,13 +11,16 @@ import pytest
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
-@pytest.mark.parametrize("script,keys", [
-    ("fit_phong.py", ["mat2.color", "mat2.diffuse_mix", "mat2.specular_mix", "mat2.phong_coeff"]),
-    ("fit_glass.py", ["mat2.refractivity", "mat2.ior"]),
+@pytest.mark.parametrize("script,keys,extra", [
+    ("fit_phong.py", ["mat2.color", "mat2.diffuse_mix", "mat2.specular_mix", "mat2.phong_coeff"],
+     []),
+    ("fit_glass.py", ["mat2.refractivity", "mat2.ior"], []),
+    ("fit_shape.py", ["translate2.offset", "scale1.factors"], ["--spp", "4"]),
+    ("fit_pose.py", ["camera.eye", "camera.lookat"], ["--spp", "4"]),
 ])
-def test_example_runs(script, keys):
+def test_example_runs(script, keys, extra):
     result = subprocess.run([sys.executable, os.path.join("examples", script), "--iters", "4",
-                             "--size", "12"], cwd=ROOT, capture_output=True, text=True,
+                             "--size", "12"] + extra, cwd=ROOT, capture_output=True, text=True,
                             timeout=300)
     assert result.returncode == 0, result.stderr
     out = result.stdout

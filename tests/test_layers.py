@@ -33,7 +33,7 @@ ROOMS = {
     "raymitsuba.atomic": "shared", "raymitsuba.tessellation": "shared",
     "raymitsuba.translate": "translate",
     "raymitsuba._llvm": "backend", "raymitsuba.backend": "backend", "raymitsuba.images": "backend",
-    "raymitsuba.api": "library", "raymitsuba.fit": "library", "raymitsuba.testing": "library",
+    "raymitsuba.api": "library", "raymitsuba.fit": "library", "raymitsuba.parameters": "library", "raymitsuba.testing": "library",
     "raymitsuba": "cli", "raymitsuba.__main__": "cli",  # the package's face: entry points
 }
 PREFIXES = {"raymitsuba.format": "format", "raymitsuba.cli": "cli", "raymitsuba.compare": "library",

@@ -14,6 +14,8 @@ module             what it owns
 ``chunks``         which camera rays are traced together, within a budget; the probe
 ``guards``         what a ray costs; the requests refused before tracing (BudgetError)
 ``antialias``      which pixels adaptive anti-aliasing refines, and how; its plan
+``geometry_ad``    the geometry and camera keys' derivatives, attached to hits and rays
+``boundary``       the boundary terms of moving edges on the k x k lattice
 =================  ===================================================================
 """
 

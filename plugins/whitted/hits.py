@@ -20,8 +20,9 @@ computed from tables indexed by the shape's registry id:
   of the object-space point, as Mitsuba's sphere does; uv may differ from Mitsuba's in
   the last bits).
 
-Derivatives follow the ray, not the shapes (their parameters are not the renderer's):
-where the ray carries gradients the hit distance is re-intersected differentiably
+Derivatives follow the ray and, where a parameter key moves them, the shapes (a copy of the
+table whose centres, radii and positions carry the keys' derivatives: ``geometry_ad.py``):
+where the ray or the geometry carries gradients the hit distance is re-intersected differentiably
 (ray-plane on the hit face, ray-sphere) and the barycentrics follow the point, with
 ``dr.replace_grad`` keeping the ray tracer's values. The kernels do not depend on the
 number of shapes; the table is rebuilt only when the shapes' buffers change (it keeps
@@ -100,6 +101,10 @@ class HitTable:
         self.buffers = None  # per shape: its mesh buffers, the sphere or None (kept: see update)
         self.uv = False  # whether the spheres' texture coordinates are computed (to_object read)
         self.supported = False  # whether every shape is in the table (else Mitsuba's dispatch)
+        # By shape id (the scene dict's name): its sphere row or its first vertex
+        self.rows_by_name = {}
+        # Whether the geometry carries derivatives (a copy made by geometry_ad.GeometryAD)
+        self.moving = False
         # By shape registry id (see build)
         self.kind = None  # UInt32: the bits MESH, SMOOTH, TEXCOORDS, SPHERE (0: not in the table)
         self.first = None  # UInt32: the shape's first face (meshes) or row (spheres)
@@ -144,20 +149,22 @@ class HitTable:
             return self
         self.key, self.buffers, self.uv = key, buffers, uv  # kept: see the module docstring
         self.supported = bool(key) and all(k[1] != "other" for k in key)
-        self.build(ids, key, buffers)
+        self.build(ids, key, buffers, shapes)
         return self
 
-    def build(self, ids, key, buffers):
+    def build(self, ids, key, buffers, shapes):
         size = max(int(max(ids, default=0)) + 1, 2)
         kind = np.zeros(size, np.uint32)
         first = np.zeros(size, np.uint32)  # first face (meshes) or row (spheres)
         faces, positions, normals, texcoords = [], [], [], []
         spheres = []
         face_count = vertex_count = 0
-        for k, item in zip(key, buffers):
+        self.rows_by_name = {}
+        for k, item, shape in zip(key, buffers, shapes):
             shape_id = k[0]
             if k[1] == "other":
                 continue
+            self.rows_by_name[shape.id()] = len(spheres) if k[1] == "sphere" else vertex_count
             if k[1] == "sphere":
                 kind[shape_id], first[shape_id] = SPHERE, len(spheres)
                 spheres.append(sphere_rows(shape_property(item, "to_world"), self.uv))
@@ -216,7 +223,7 @@ class HitTable:
         valid &= shape_id < self.size
         kind = dr.gather(mi.UInt32, self.kind, shape_id, valid)
         row = dr.gather(mi.UInt32, self.first, shape_id, valid)
-        attached = dr.grad_enabled(ray.o, ray.d)
+        attached = self.moving or dr.grad_enabled(ray.o, ray.d)
         si = dr.zeros(mi.SurfaceInteraction3f, dr.width(pi.t))
         t, p, n, shading_n, uv = pi.t, mi.Point3f(0.0), mi.Normal3f(0.0), mi.Normal3f(0.0), \
             mi.Point2f(0.0)

@@ -43,7 +43,7 @@ import numpy as np
 from raymitsuba import options
 from raymitsuba.options import RenderOptions
 
-from . import antialias, guards
+from . import antialias, boundary, guards
 from .camera import box_filter, camera_rays, pixel_means
 from .chunks import Chunker, Job, probe
 from .tree import Tracer
@@ -111,20 +111,28 @@ class Whitted(mi.CppADIntegrator):
         grads = np.zeros((width * height, 3), np.float32)
         jobs = self._adjoint_jobs(scene, sensor, spp, width, height)
         chunker = self._adjoint_chunker(scene, sensor)
+        edges = self._boundary(scene, sensor, spp, width, height)  # (issue 13) or None
         for j, (job, _) in enumerate(jobs):
-            last_job = j == len(jobs) - 1
+            last_job = j == len(jobs) - 1 and edges is None
 
             def visit(start, count, color, job=job, last_job=last_job):
+                if edges is not None:
+                    edges.collect(job, start, count, color)
                 with dr.resume_grad():
                     means = pixel_means(color, count, job.spp)
                     last = last_job and start + count == job.count
                     # the parameters' tangents stay for the next chunk; the last one clears them
-                    dr.forward_to(means, flags=dr.ADFlag.Default if last else
-                                  dr.ADFlag.ClearEdges | dr.ADFlag.ClearInterior)
+                    flags = dr.ADFlag.Default if last else \
+                        dr.ADFlag.ClearEdges | dr.ADFlag.ClearInterior
+                    if edges is not None:  # (an image whose every sample is flat in theta)
+                        flags |= dr.ADFlag.AllowNoGrad
+                    dr.forward_to(means, flags=flags)
                     grad = dr.ravel(dr.grad(means)).numpy().reshape(-1, 3)
                 grads[job.pixel_index(start, count).numpy()] = grad
 
             chunker.run(job, visit, ad=True)
+        if edges is not None:
+            edges.forward(grads, last=True)
         return mi.TensorXf(grads.reshape(height, width, 3))
 
     def render_backward(self, scene, params, grad_in, sensor=0, seed=0, spp=0):
@@ -132,17 +140,23 @@ class Whitted(mi.CppADIntegrator):
         chunker = self._adjoint_chunker(scene, sensor)
         grad_in = mi.Float(dr.detach(grad_in.array if isinstance(grad_in, mi.TensorXf)
                                      else mi.TensorXf(grad_in).array))
+        edges = self._boundary(scene, sensor, spp, width, height)  # (issue 13) or None
         for job, weights in self._adjoint_jobs(scene, sensor, spp, width, height):
             # pixels refined later take their value (and their gradient) from a later job
             grad = grad_in if weights is None else grad_in * mi.Float(np.repeat(weights, 3))
 
             def visit(start, count, color, job=job, grad=grad):
+                if edges is not None:
+                    edges.collect(job, start, count, color)
                 with dr.resume_grad():
                     means = pixel_means(color, count, job.spp)
                     weight = dr.gather(mi.Color3f, grad, job.pixel_index(start, count))
-                    dr.backward_from(means * weight)
+                    dr.backward_from(means * weight, flags=dr.ADFlag.Default | (
+                        dr.ADFlag.AllowNoGrad if edges is not None else 0))
 
             chunker.run(job, visit, ad=True)
+        if edges is not None:
+            edges.backward(grad_in.numpy().reshape(-1, 3))
 
     # -- the image -----------------------------------------------------------------------------
     def render_array(self, scene, sensor=0, spp=0, store=None, rows=None):
@@ -212,6 +226,24 @@ class Whitted(mi.CppADIntegrator):
         return guards.Estimate(probe(self.tracer, scene, sensor, width, height, spp, terms),
                                width, height, spp, max_depth=self.max_depth,
                                memory_budget=self.memory_budget, time_limit=self.time_limit)
+
+    def _boundary(self, scene, sensor, spp, width, height):
+        """(issue 13) The boundary terms of an adjoint pass (boundary.Boundary), or None where
+        no parameter moves an edge. They need the uniform k x k lattice of spp = k^2: with
+        anti-aliasing (whose samples differ from pixel to pixel) or another sample count, a
+        derivative with respect to the geometry or the camera is refused."""
+        if not boundary.wanted(self.tracer, scene):
+            return None
+        if self.aa > 0 or boundary.lattice_side(spp) is None:
+            if self.tracer.geometry_ad is None:
+                return None  # light positions alone: the interior derivative, as before
+            raise ValueError(
+                "derivatives with respect to the geometry or the camera need the uniform "
+                f"sample lattice of --spp k^2 (got spp={spp}"
+                + (", with --aa" if self.aa > 0 else "") + "): their edges' terms are "
+                "computed between neighbouring lattice samples")
+        return boundary.Boundary(self.tracer, scene, sensor, width, height, spp,
+                                 self.memory_budget)
 
     def _adjoint_chunker(self, scene, sensor):
         return Chunker(self.tracer, scene, sensor, self.memory_budget,

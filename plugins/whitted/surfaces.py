@@ -70,7 +70,7 @@ class SceneTerms:
     The direct (non-ambient) lights stay a Python list: the shading kernel has one term
     per light (scenes have a handful; the kernel grows with their number)."""
 
-    def __init__(self, scene, surfaces=None, geometry=None):
+    def __init__(self, scene, surfaces=None, geometry=None, geometry_ad=None):
         """The terms of ``scene``. ``surfaces``: the surface table of an earlier render, whose
         layout is reused for the same shapes (see Surfaces); ``geometry``: the HitTable to
         bring up to date with the scene (default: a new one)."""
@@ -89,6 +89,8 @@ class SceneTerms:
         self.direct = [light for light in lights if not light.is_ambient]  # the other lights
         geometry = HitTable() if geometry is None else geometry
         self.geometry = geometry.update(scene, self.surfaces.layout.uses_uv, ids)  # the hits' table
+        if geometry_ad is not None:  # (issue 13) the table, its geometry attached to the keys
+            self.geometry = geometry_ad.table(self.geometry)
 
 
 class Layout:

@@ -126,12 +126,15 @@ class Tracer:
         # Caches across renders, each keyed by the scene's shapes (see scene_terms):
         self.geometry = HitTable()  # the geometry table: rebuilt when the shapes change
         self.surfaces = None  # the last surface table: its layout serves the same shapes again
+        # Hook (issue 13): the parameter keys that move shapes and the camera
+        # (geometry_ad.GeometryAD, set by raymitsuba.parameters; None: none)
+        self.geometry_ad = None
 
     def scene_terms(self, scene):
         """What shading needs from ``scene`` (its SceneTerms, with the geometry table), built
         once per render and shared by its chunks."""
         with no_cyclic_gc():  # a Python pass over every shape and surface
-            terms = SceneTerms(scene, self.surfaces, self.geometry)
+            terms = SceneTerms(scene, self.surfaces, self.geometry, self.geometry_ad)
         self.surfaces = terms.surfaces
         return terms
 
@@ -143,6 +146,8 @@ class Tracer:
                                             self.max_shadow_crossings)
         path_weight = None if limits is None else mi.Float(1.0)
         generations, rays_per_generation = [], []
+        if self.geometry_ad is not None:  # hook (issue 13): the camera keys' derivatives
+            ray = self.geometry_ad.camera_rays(ray)
         for depth in range(self.max_depth + 1):
             rays_per_generation.append(dr.width(ray))
             last = depth == self.max_depth

@@ -12,9 +12,13 @@ from raymitsuba.cli.options import dialect_option
 
 @click.command()
 @click.argument("scenes", nargs=-1, required=True, type=click.Path())
+@click.option("--params", "list_params", is_flag=True,
+              help="List every parameter key of each scene instead of its summary, one line "
+                   "each: KEY LINE:COL VALUE [VALUE ...] (the position of its first number, "
+                   "its numbers as written).")
 @dialect_option
 @click.pass_context
-def check(ctx, scenes, dialect):
+def check(ctx, scenes, dialect, list_params):
     """Validate .RAY SCENES and print a short summary of each.
 
     The summary (the dialect, objects and lights by kind, materials, the world bounding box
@@ -30,4 +34,4 @@ def check(ctx, scenes, dialect):
         # file names may carry undecodable bytes (surrogates): never fail to print them
         click.echo(text.encode(encoding, "backslashreplace").decode(encoding), err=err)
 
-    ctx.exit(0 if check_scenes(scenes, echo, dialect) else EXIT_SCENE_ERROR)
+    ctx.exit(0 if check_scenes(scenes, echo, dialect, list_params) else EXIT_SCENE_ERROR)

@@ -60,6 +60,11 @@ def show(value) -> str:
               help="Adam steps.")
 @click.option("--lr", default=0.02, show_default=True, type=click.FloatRange(0, min_open=True),
               help="Learning rate, relative to each parameter's scale max(1, |start|).")
+@click.option("--levels", default=1, show_default=True, type=click.IntRange(1, 8),
+              help="Coarse to fine (one scene): the steps are shared among this many levels, "
+                   "the first comparing images averaged over 2^(levels-1) pixel blocks (so that "
+                   "an object far from its place in the target still gets a gradient), the "
+                   "last at full resolution.")
 @render_options("spp", "max_depth", "aa", "memory_budget")
 @click.option("--truth", default=None, type=click.Path(dir_okay=False),
               help="The true scene (same structure): also print each parameter's error.")
@@ -70,7 +75,8 @@ def show(value) -> str:
 @click.option("-q", "--quiet", is_flag=True, help="Print only the final summary.")
 @batch_options()
 @dialect_option
-def fit(scenes, target, output, keys, iters, lr, truth, plot, quiet, dialect, **options):
+def fit(scenes, target, output, keys, iters, lr, levels, truth, plot, quiet, dialect,
+        **options):
     """Fit parameters of the .RAY file SCENE so that its render matches TARGET.
 
     Minimises the mean squared error over pixels and channels (linear values) with
@@ -82,10 +88,12 @@ def fit(scenes, target, output, keys, iters, lr, truth, plot, quiet, dialect, **
     batch = {name: options.pop(name) for name in BATCH_OPTIONS}
     if len(scenes) == 1 and not any(batch.values()) and "{" not in target + output:
         return fit_one(scenes[0], target, output, keys, iters, lr, truth, plot, quiet,
-                       dialect, options)
+                       dialect, options, levels)
     if truth is not None or plot is not None:
         raise click.BadParameter("--truth and --plot are for one scene",
                                  param_hint="--truth/--plot")
+    if levels != 1:
+        raise click.BadParameter("--levels is for one scene", param_hint="--levels")
     from raymitsuba.batch.templates import TemplateError, expand, fill
 
     try:
@@ -116,7 +124,8 @@ def run_batch(scenes, targets, outputs, keys, iters, lr, dialect, batch, options
     common.summarise("raymitsuba fit", items, manifest)
 
 
-def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, options):
+def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, options,
+            levels=1):
     """Today's single fit, in this process."""
     from raymitsuba import fit as fitting
 
@@ -127,7 +136,7 @@ def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect,
     model, data = parse_scene(scene, dialect)
     report(model.warnings)
     try:
-        selected = fitting.select_keys(model, None if keys is None else keys.split(","))
+        selected = fitting.select_keys(model, None if keys is None else keys.split(","), data)
     except fitting.FitError as e:
         fail(str(e))
     if not selected:
@@ -135,9 +144,9 @@ def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect,
              "name parameters with --params")
     truth_values = None
     if truth is not None:
-        truth_model, _ = parse_scene(truth, dialect)
+        truth_model, truth_data = parse_scene(truth, dialect)
         try:
-            truth_values = fitting.model_values(truth_model, selected)
+            truth_values = fitting.model_values(truth_model, selected, truth_data)
         except fitting.FitError as e:
             fail(f"{truth}: {e}")
     try:
@@ -169,7 +178,8 @@ def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect,
     try:
         backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
         loaded = api.load(model, width=width, height=height, **options)
-        result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, callback=progress)
+        result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, callback=progress,
+                             levels=levels)
         fitted_text = fitting.rewrite_scene(data, model, result.fitted)
         if plot is not None:
             write_plot(plot, target_image, result, srgb)

@@ -87,11 +87,14 @@ def _table(*commands: Command) -> Dict[str, Command]:
     return {c.name: c for c in commands}
 
 
+_EYE = _vector("eye", *_XYZ)
+_LOOKAT = _vector("lookat", *_XYZ)
+_UP = _vector("up", *_XYZ)
 _CAMERA_575 = (
-    Command("eye", _plain(*_XYZ), "position of the eye (default 0 0 5)"),
-    Command("lookat", _plain(*_XYZ), "a point the eye looks at (default 0 0 0)"),
-    Command("up", _plain(*_XYZ), "up direction (default 0 1 0)"),
-    Command("fov", _plain("theta"), "vertical field of view in degrees (default 45)"),
+    Command("eye", _EYE, "position of the eye (default 0 0 5)"),
+    Command("lookat", _LOOKAT, "a point the eye looks at (default 0 0 0)"),
+    Command("up", _UP, "up direction (default 0 1 0)"),
+    Command("fov", (Operand("theta", "fov"),), "vertical field of view in degrees (default 45)"),
 )
 _BACKGROUND = Command("background", _COLOR, "color of rays that hit nothing (default black)")
 
@@ -102,37 +105,39 @@ COMP575_COMMANDS: Dict[str, Command] = _table(
     Command("plane", (), "the plane y = 0"),
     Command("cylinder", (), "closed cylinder, axis y, radius 1, height 1"),
     Command("cone", (), "closed cone, axis y, base radius 1, height 1"),
-    Command("triangle", _plain("x0", "y0", "z0", "x1", "y1", "z1", "x2", "y2", "z2"),
-            "triangle with these corners"),
-    Command("translate", _plain(*_XYZ), "push a translation"),
-    Command("scale", _plain(*_XYZ), "push a scale"),
-    Command("rotateX", _plain("theta"), "push a rotation about x, degrees"),
-    Command("rotateY", _plain("theta"), "push a rotation about y, degrees"),
-    Command("rotateZ", _plain("theta"), "push a rotation about z, degrees"),
+    Command("triangle", _vector("v0", "x0", "y0", "z0") + _vector("v1", "x1", "y1", "z1")
+            + _vector("v2", "x2", "y2", "z2"), "triangle with these corners"),
+    Command("translate", _vector("offset", *_XYZ), "push a translation"),
+    Command("scale", _vector("factors", *_XYZ), "push a scale"),
+    Command("rotateX", (Operand("theta", "angle"),), "push a rotation about x, degrees"),
+    Command("rotateY", (Operand("theta", "angle"),), "push a rotation about y, degrees"),
+    Command("rotateZ", (Operand("theta", "angle"),), "push a rotation about z, degrees"),
     Command("reset", (), "empty the transform stack"),
     Command("pop", (), "remove the last transform"),
     Command("material", _COLOR + _PHONG + (
         Operand("n", "phong_coeff"), Operand("kr", "reflectivity"),
         Operand("kt", "refractivity"), Operand("eta", "ior")),
         "material of the objects that follow"),
-    Command("checkerboard", _plain("size"), "checker the planes that follow (<= 0: off)"),
+    Command("checkerboard", (Operand("size", "size"),),
+            "checker the planes that follow (<= 0: off)"),
 )
 
 #: The MIT 6.837 dialect.
 MIT6837_COMMANDS: Dict[str, Command] = _table(
-    Command("eye", _plain(*_XYZ), "position of the eye (default 0 0 10)"),
-    Command("lookat", _plain(*_XYZ), "a point the eye looks at (default 0 0 0)"),
-    Command("up", _plain(*_XYZ), "up direction (default 0 1 0)"),
-    Command("fov", _plain("theta"), "horizontal field of view in degrees (default 30)"),
+    Command("eye", _EYE, "position of the eye (default 0 0 10)"),
+    Command("lookat", _LOOKAT, "a point the eye looks at (default 0 0 0)"),
+    Command("up", _UP, "up direction (default 0 1 0)"),
+    Command("fov", (Operand("theta", "fov"),), "horizontal field of view in degrees (default 30)"),
     Command("viewport", _plain("width", "height"), "image size in pixels (default 512 512)"),
     _BACKGROUND,
     Command("surface", _COLOR + _PHONG + (
         Operand("ns", "phong_coeff"), Operand("kr", "reflectivity"),
         Operand("kt", "refractivity"), Operand("index", "ior", reciprocal=True)),
         "material of the objects that follow; index = n_outside / n_inside"),
-    Command("sphere", _plain("cx", "cy", "cz", "r"), "sphere of centre (cx, cy, cz), radius r"),
+    Command("sphere", _vector("center", "cx", "cy", "cz") + (Operand("r", "radius"),),
+            "sphere of centre (cx, cy, cz), radius r"),
     Command("triangles", (), "open a triangle mesh block"),
-    Command("v", _plain(*_XYZ), "a vertex of the open block, numbered from 0"),
+    Command("v", _vector("position", *_XYZ), "a vertex of the open block, numbered from 0"),
     Command("f", (), "a face: 3 or more vertex indices, fanned from the first"),
     Command("end", (), "close the mesh block"),
 )
@@ -188,22 +193,54 @@ def light_fields(kind: LightKind) -> Tuple[str, ...]:
 
 
 # -- parameter keys --------------------------------------------------------------------------
-_KEY = re.compile(r"(?:(mat|light)(\d+)|(background))\.([a-z_]+)")
+#: The commands whose operands are parameters of the geometry or the camera, by dialect: a
+#: key ``{command}{n}.{field}`` names the fields of the n-th line of that command (from 1,
+#: counted over the whole file), the fields being the operands' ``field`` in the table.
+GEOMETRY_COMMANDS = {
+    COMP575: ("translate", "scale", "rotateX", "rotateY", "rotateZ", "triangle", "checkerboard"),
+    MIT6837: ("sphere", "v"),
+}
+#: The camera's commands: ``camera.{field}`` names the operands of the last such line (the
+#: one in effect).
+CAMERA_COMMANDS = ("eye", "lookat", "up", "fov")
+
+_OWNERS = "|".join(sorted({c for cs in GEOMETRY_COMMANDS.values() for c in cs}, key=len,
+                          reverse=True))
+_KEY = re.compile(rf"(?:(mat|light|{_OWNERS})(\d+)|(background|camera))\.([a-z_0-9]+)")
+
+
+def geometry_fields(command: str, dialect: str) -> Tuple[str, ...]:
+    """The fields of a geometry (or camera) command, in operand order."""
+    fields: list = []
+    for o in command_table(dialect)[command].operands:
+        if o.field is not None and o.field not in fields:
+            fields.append(o.field)
+    return tuple(fields)
 
 
 @dataclass(frozen=True)
 class ParamKey:
     """A parameter key: ``mat3.color`` is ParamKey("mat", 3, "color").
 
-    The keys, decided here (the translator gives the Mitsuba objects these ids, so they are
-    also the keys of ``mi.traverse``): ``mat{i}.{field}`` with i the material's number in
-    file order (``mat0``: the default material; MIT 6.837 ``surface`` commands count alike)
-    and field one of ``Material.FIELDS``; ``light{j}.{field}`` with j counting ``light``
-    lines from 1 and field one of :func:`light_fields` of its kind (color, position,
-    direction, shape_coefficient); ``background.color``."""
+    The keys, decided here (the translator gives the Mitsuba objects of materials, lights and
+    the background these ids, so they are also the keys of ``mi.traverse``): ``mat{i}.{field}``
+    with i the material's number in file order (``mat0``: the default material; MIT 6.837
+    ``surface`` commands count alike) and field one of ``Material.FIELDS``;
+    ``light{j}.{field}`` with j counting ``light`` lines from 1 and field one of
+    :func:`light_fields` of its kind (color, position, direction, shape_coefficient);
+    ``background.color``.
 
-    owner: str  # "mat", "light" or "background"
-    index: Optional[int]  # None for the background
+    The geometry and the camera (:data:`GEOMETRY_COMMANDS`, :data:`CAMERA_COMMANDS`):
+    ``camera.eye``, ``camera.lookat``, ``camera.up`` (3-vectors) and ``camera.fov`` (degrees as
+    written: COMP 575 vertical, MIT 6.837 horizontal), each of the last line of its command;
+    ``{command}{n}.{field}``, n counting that command's lines in the file from 1: COMP 575
+    ``translate{n}.offset``, ``scale{n}.factors``, ``rotateX{n}.angle`` (also Y, Z; degrees),
+    ``triangle{n}.v0`` / ``.v1`` / ``.v2``, ``checkerboard{n}.size``; MIT 6.837
+    ``sphere{n}.center``, ``sphere{n}.radius``, ``v{n}.position`` (n counting ``v`` lines over
+    the whole file, across mesh blocks)."""
+
+    owner: str  # "mat", "light", "background", "camera" or a geometry command
+    index: Optional[int]  # None for the background and the camera
     field: str
 
     @classmethod
@@ -211,12 +248,17 @@ class ParamKey:
         """The key ``key`` parsed; ValueError if it is not of the form above."""
         m = _KEY.fullmatch(key)
         if m is None:
-            raise ValueError(f"`{key}` is not a parameter key (mat<i>.<field>, light<j>.<field> "
-                             f"or background.color)")
-        owner, number, background, field = m.groups()
-        if background:
-            return cls("background", None, field)
+            raise ValueError(f"`{key}` is not a parameter key (mat<i>.<field>, light<j>.<field>, "
+                             f"background.color, camera.<field> or <command><n>.<field>)")
+        owner, number, single, field = m.groups()
+        if single:
+            return cls(single, None, field)
         return cls(owner, int(number), field)
+
+    @property
+    def is_geometry(self) -> bool:
+        """Whether the key names a number of the geometry or of the camera."""
+        return self.owner not in ("mat", "light", "background")
 
     def __str__(self) -> str:
         head = self.owner if self.index is None else f"{self.owner}{self.index}"

@@ -137,10 +137,12 @@ def summarize(scene: Scene) -> str:
     return "\n".join([f"{scene.file}: ok"] + ["  " + line for line in summary_lines(scene)])
 
 
-def check_scenes(paths, echo, dialect: str = "auto") -> bool:
+def check_scenes(paths, echo, dialect: str = "auto", list_params: bool = False) -> bool:
     """Parse every file of ``paths``; print summaries and diagnostics; True if all are valid.
 
-    ``dialect`` is passed to the parser. ``echo(text, err=False)`` prints a line (``click.echo``): summaries to stdout,
+    ``dialect`` is passed to the parser; ``list_params``: print each scene's parameter keys
+    (``KEY LINE:COL VALUE...``, :func:`raymitsuba.format.writeback.key_listing`) instead of
+    its summary. ``echo(text, err=False)`` prints a line (``click.echo``): summaries to stdout,
     diagnostics to stderr. Nothing but :class:`RayError` is expected from the parser.
     """
     all_valid = True
@@ -156,5 +158,13 @@ def check_scenes(paths, echo, dialect: str = "auto") -> bool:
             continue
         for diagnostic in scene.warnings:
             echo(diagnostic.format(), err=True)
-        echo(summarize(scene))
+        if list_params:
+            from raymitsuba.format.writeback import key_listing
+
+            with open(path, "rb") as f:
+                data = f.read()
+            for line in key_listing(scene, data):
+                echo(line)
+        else:
+            echo(summarize(scene))
     return all_valid

@@ -24,6 +24,7 @@ from typing import Dict, List, Sequence, Tuple, Union
 
 from raymitsuba.format import commands as C
 from raymitsuba.format.commands import ParamKey
+from raymitsuba.format.keys import geometry_places
 from raymitsuba.format.lexer import LINE_END, tokens_from
 from raymitsuba.model import Material, Scene
 
@@ -47,25 +48,62 @@ def parse_key(key: str) -> ParamKey:
         raise ParameterError(str(e)) from None
 
 
-def writable_keys(model: Scene) -> List[str]:
+def source_lines(data: Union[bytes, str]) -> List[str]:
+    """The lines of the .RAY source ``data`` (bytes or text), without their line ends, as
+    :func:`rewrite_scene` numbers them."""
+    text = bytes(data).decode("utf-8", "surrogateescape") if isinstance(
+        data, (bytes, bytearray, memoryview)) else data
+    return _LINE_END_KEPT.split(text)[0::2]
+
+
+def writable_keys(model: Scene, data: Union[bytes, str, None] = None) -> List[str]:
     """Every parameter key whose value has a place in the .RAY file: the fields of each
-    ``material`` / ``surface`` line (mat1, mat2, ...), of each ``light`` line by kind, and
-    the background's color if it has a line."""
+    ``material`` / ``surface`` line (mat1, mat2, ...), of each ``light`` line by kind, the
+    background's color if it has a line and, given the file's text ``data``, the geometry
+    and camera keys (:mod:`raymitsuba.format.keys`)."""
     keys = [f"mat{m.index}.{name}" for m in model.materials if m.line is not None
             for name in MATERIAL_FIELDS]
     for light in model.lights:
         keys += [f"light{light.index}.{name}" for name in C.light_fields(light.kind)]
     if model.background_at is not None:
         keys.append("background.color")
+    if data is not None:
+        keys += list(geometry_places(source_lines(data), model.dialect))
     return keys
 
 
-def model_values(model: Scene, keys: Sequence[str]) -> Dict[str, Value]:
-    """The values of ``keys`` as written in ``model`` (e.g. a ground-truth scene)."""
+def key_listing(model: Scene, data: Union[bytes, str]) -> List[str]:
+    """``KEY LINE:COL VALUE [VALUE ...]`` for every key of the file (``check --params``): the
+    position of its first number and its numbers as written."""
+    lines = source_lines(data)
+    out = []
+    for key in writable_keys(model, data):
+        place = place_of(model, key, lines)
+        tokens = list(tokens_from(lines, place.line, place.column, model.dialect))
+        spans = [tokens[position] for position, _ in place.operands]
+        texts = [lines[ln - 1][b:e] for ln, b, e in spans]
+        out.append(f"{key} {spans[0][0]}:{spans[0][1] + 1} " + " ".join(texts))
+    return out
+
+
+def model_values(model: Scene, keys: Sequence[str],
+                 data: Union[bytes, str, None] = None) -> Dict[str, Value]:
+    """The values of ``keys`` as written in ``model`` (e.g. a ground-truth scene); geometry
+    and camera keys need the file's text ``data``."""
     out: Dict[str, Value] = {}
+    places = None
     for key in keys:
         parsed = parse_key(key)
         name = parsed.field
+        if parsed.is_geometry:
+            if places is None:
+                places = geometry_places(source_lines(data), model.dialect) if data is not None \
+                    else {}
+            if key not in places:
+                raise ParameterError(f"`{key}`: the scene has no such line")
+            values = places[key].values
+            out[key] = values[0] if len(values) == 1 else values
+            continue
         if parsed.owner == "background":
             value = model.background
         elif parsed.owner == "mat":
@@ -110,9 +148,15 @@ class Place:
     operands: Tuple[Tuple[int, C.Operand], ...]
 
 
-def place_of(model: Scene, key: str) -> Place:
-    """Where ``key``'s operands are written in the .RAY text the model was parsed from."""
+def place_of(model: Scene, key: str, lines: Sequence[str] = ()) -> Place:
+    """Where ``key``'s operands are written in the .RAY text the model was parsed from (its
+    ``lines``, needed for the geometry and camera keys)."""
     parsed = parse_key(key)
+    if parsed.is_geometry:
+        place = geometry_places(lines, model.dialect).get(key)
+        if place is None:
+            raise ParameterError(f"`{key}`: the scene has no line for it")
+        return Place(place.line, place.column, place.operands)
     if parsed.owner == "background":
         if model.background_at is None or parsed.field != "color":
             raise ParameterError(f"`{key}`: the scene has no `background` line to write it to")
@@ -136,19 +180,30 @@ def place_of(model: Scene, key: str) -> Place:
                                          command.operand_for(parsed.field))))
 
 
-def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value]) -> Union[bytes, str]:
+def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value],
+                  exact: bool = False) -> Union[bytes, str]:
     """The .RAY source ``data`` with the operands of ``values``' keys replaced by the values.
 
     Every other byte is kept. ``model`` must be the parse of ``data`` (its line numbers
     locate the operands). A number whose value is unchanged (as float32, the precision of
-    the renderer) keeps its original spelling."""
+    the renderer) keeps its original spelling. ``exact``: changed numbers are written with
+    every digit (``repr``, which reads back as the same float64) instead of ``.6g``."""
     is_bytes = isinstance(data, (bytes, bytearray))
     text = bytes(data).decode("utf-8", "surrogateescape") if is_bytes else data
     parts = _LINE_END_KEPT.split(text)  # line, end, line, end, ..., line
     lines = parts[0::2]
     edits: Dict[int, Dict[Tuple[int, int], str]] = {}  # line -> (start, end) -> new text
+    geometry = {}  # the geometry keys' places, found once
+    if any(parse_key(key).is_geometry for key in values):
+        geometry = geometry_places(lines, model.dialect)
     for key, value in values.items():
-        place = place_of(model, key)
+        if parse_key(key).is_geometry:
+            if key not in geometry:
+                raise ParameterError(f"`{key}`: the scene has no line for it")
+            found = geometry[key]
+            place = Place(found.line, found.column, found.operands)
+        else:
+            place = place_of(model, key)
         components = value if isinstance(value, tuple) else (value,)
         if len(components) != len(place.operands):
             raise ParameterError(f"`{key}`: expected {len(place.operands)} value(s), "
@@ -164,8 +219,12 @@ def rewrite_scene(data: Union[bytes, str], model: Scene, values: Dict[str, Value
                                f"{lines[place.line - 1]!r}")
             line, begin, end = tokens[position]
             original = lines[line - 1][begin:end]
-            new = original if _same_float32(original, operand, component) \
-                else _format(operand.written(component))
+            written = operand.written(component)
+            if exact:
+                new = original if float(original) == written else repr(float(written))
+            else:
+                new = original if _same_float32(original, operand, component) \
+                    else _format(written)
             edits.setdefault(line, {})[(begin, end)] = new
     for line, changes in edits.items():
         source = lines[line - 1]

@@ -131,3 +131,42 @@ def test_antialiasing_and_a_memory_budget_pass_through(files, monkeypatch):
                  "--aa", 0.05, "--memory-budget", "64M", "-o", tmp / "fitted.ray", "-q")
     assert result.exit_code == 0, result.output + result.stderr
     assert seen["aa"] == 0.05 and seen["memory_budget"] == 64 << 20
+
+
+def test_geometry_and_camera_keys_are_fitted_and_written_back(tmp_path, mitsuba):
+    # A sphere moved 0.15 to the right of its place in the target (and the eye line
+    # written with a tab) comes back toward it in a few steps on the 2 x 2 lattice; the
+    # fitted file differs from the start only in the translate's numbers.
+    import raymitsuba
+    from raymitsuba import images
+
+    true = "eye 0 0 5\nfov 40\nbackground 0.2 0.3 0.4\nlight 1 1 1 ambient\n" \
+           "material 0.8 0.4 0.3 1 0 0 1 0 0 1\ntranslate 0.1 0 0\nsphere\n"
+    start = tmp_path / "start.ray"
+    start.write_bytes(true.replace("translate 0.1 0 0", "translate 0.25 0 0").encode())
+    target = tmp_path / "target.exr"
+    images.write(str(target), raymitsuba.render(raymitsuba.load(true, width=16, height=12,
+                                                                 spp=4)).numpy())
+    out = tmp_path / "fitted.ray"
+    result = run(start, "--target", target, "--params", "translate1.offset", "--spp", 4,
+                 "--iters", 12, "--lr", 0.05, "-o", out, "-q")
+    assert result.exit_code == 0, result.output
+    fitted = out.read_bytes()
+    lines = fitted.split(b"\n")
+    assert lines[:5] + lines[6:] == start.read_bytes().split(b"\n")[:5] + \
+        start.read_bytes().split(b"\n")[6:]
+    offset = [float(v) for v in lines[5].split()[1:]]
+    assert abs(offset[0] - 0.1) < 0.05  # from 0.15 off
+
+
+def test_a_key_that_cannot_move_is_refused(tmp_path, mitsuba):
+    scene = tmp_path / "plane.ray"
+    scene.write_text("light 1 1 1 ambient\ntranslate 0 -1 0\nplane\n")
+    from raymitsuba import images
+
+    target = tmp_path / "target.exr"
+    images.write(str(target), np.zeros((8, 8, 3), np.float32))
+    result = run(scene, "--target", target, "--params", "translate1.offset", "-o",
+                 tmp_path / "out.ray")
+    assert result.exit_code != 0
+    assert "plane" in result.output and not (tmp_path / "out.ray").exists()

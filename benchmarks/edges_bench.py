@@ -1,0 +1,207 @@
+"""Derivatives through moving edges: accuracy against finite differences, and cost.
+
+    ./dev python benchmarks/edges_bench.py [--width 32 --height 24] [--cost-size 256x192]
+                                           [--only accuracy,cost]
+
+**Accuracy.** For each kind of discontinuity and parameter (a scene made for it), the
+derivative of the image along a fixed direction by forward-mode AD on the k x k lattice
+(``--spp k^2``, k = 2, 4, 8) against the reference: central finite differences of the
+image of a 64 x 64 lattice (``--spp 4096``), with a step that moves the edges by about
+0.1 pixel (see tests/support_edges.py for why it is good to 1-2 %). Printed: the weighted
+sum's error (fixed random weights) relative to the reference's weighted sum, and relative to
+the sum of the terms' sizes (sum |w ref|: a derivative of both signs may nearly cancel in the
+sum itself), and the per-pixel relative L2 error ||AD - ref|| / ||ref||.
+
+**Cost.** At 256 x 192, k = 4 (spp 16): the primal render, and a gradient step (render +
+backward of an L2 loss) with respect to geometry keys (a translate and the eye): medians of
+3, in this process, and their ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+
+FLAT = """\
+eye 0 0 5
+fov 40
+background 0.2 0.3 0.4
+light 1 1 1 point 2 3 6
+light 0.2 0.2 0.2 ambient
+material 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1
+"""
+SHADED_SPHERE = FLAT + "translate 0.1 0.05 0\nscale 1.2 1.2 1.2\nsphere\n"
+MIT_SPHERE = """\
+eye 0 0 10 fov 30
+background 0.2 0.3 0.4
+surface 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1
+light 1 1 1 point 2 3 9
+sphere 0.1 0.05 0 1.3
+"""
+TRIANGLE = FLAT + "rotateZ 10\ntriangle -1.1 -1 0  1.3 -0.7 0.3  0.2 1.2 0\n"
+SCENE = """\
+eye 0.4 4 5
+lookat 0 0.2 0
+fov 35
+background 0.2 0.3 0.4
+light 1 1 1 point 2 5 4
+light 0.25 0.25 0.25 ambient
+material 0.9 0.85 0.7 0.4 0.6 0 1 0 0 1
+translate 0 -1 0
+checkerboard 1.2
+plane
+reset
+material 0.8 0.3 0.2 0.3 0.7 0.3 10 0 0 1
+translate -0.9 0 0
+sphere
+"""
+GLASS = """\
+eye 0.05 0.03 4
+fov 30
+light 1 1 1 ambient
+material 0.9 0.6 0.3 1 0 0 1 0 0 1
+rotateX 90
+translate 0 0 -3
+checkerboard 0.5
+plane
+reset
+material 1 1 1 0 0 0 1 0 0.9 1.5
+sphere
+"""
+
+# (kind of edge, parameter, scene, key, direction, step moving edges ~0.1 px at 32 x 24)
+CASES = [
+    ("silhouette", "sphere centre", MIT_SPHERE, "sphere1.center", (0.6, -0.8, 0.0), 0.03),
+    ("silhouette", "sphere radius", MIT_SPHERE, "sphere1.radius", (1.0,), 0.03),
+    ("silhouette", "translate", SHADED_SPHERE, "translate1.offset", (0.6, -0.8, 0.0), 0.015),
+    ("silhouette", "scale", SHADED_SPHERE, "scale1.factors", (1.0, 1.0, 1.0), 0.015),
+    ("outline", "rotate", TRIANGLE, "rotateZ1.angle", (1.0,), 0.5),
+    ("outline", "triangle vertex", TRIANGLE, "triangle1.v1", (0.6, -0.8, 0.0), 0.015),
+    ("all primary", "eye", SCENE, "camera.eye", (0.6, 0.0, -0.8), 0.02),
+    ("all primary", "lookat", SCENE, "camera.lookat", (0.6, -0.8, 0.0), 0.01),
+    ("all primary", "fov", SCENE, "camera.fov", (1.0,), 0.1),
+    ("shadow", "point light position", SCENE, "light1.position", (0.6, 0.0, -0.8), 0.05),
+    ("checker seen through glass", "eta", GLASS, "mat2.ior", (1.0,), 0.002),
+]
+
+
+def accuracy(mi, width, height):
+    from support_edges import finite_difference, forward, relative_l2
+
+    rng = np.random.default_rng(13)
+    weights = rng.random((height, width, 3))
+    print(f"accuracy at {width} x {height}: AD on the k x k lattice vs finite differences "
+          "of the 64 x 64 lattice")
+    print("| edge | parameter | k | weighted sum: error | error / sum of sizes | "
+          "per-pixel relative L2 |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for kind, label, text, key, direction, h in CASES:
+        options = dict(width=width, height=height)
+        reference = finite_difference(mi, text, key, direction, h, **options)
+        ref_sum = float(np.sum(weights * reference))
+        size = float(np.sum(np.abs(weights * reference)))
+        for k in (2, 4, 8):
+            grad = forward(mi, text, key, direction, k * k, **options)
+            error = abs(float(np.sum(weights * grad)) - ref_sum)
+            print(f"| {kind} | {label} | {k} | {error / abs(ref_sum):.2%} | {error / size:.2%} | "
+                  f"{relative_l2(grad, reference):.2%} |", flush=True)
+
+
+def cost(mi, width, height, repeats=3):
+    import drjit as dr
+    import raymitsuba
+
+    def primal():
+        scene = raymitsuba.load(SCENE, width=width, height=height, spp=16)
+        started = time.perf_counter()
+        raymitsuba.render(scene).numpy()
+        return time.perf_counter() - started
+
+    target = mi.TensorXf(raymitsuba.render(raymitsuba.load(SCENE, width=width, height=height,
+                                                           spp=16)).numpy())
+
+    def step():
+        scene = raymitsuba.load(SCENE, width=width, height=height, spp=16)
+        params = scene.params
+        for key in ("translate2.offset", "camera.eye"):
+            dr.enable_grad(params[key])
+        params.update()
+        started = time.perf_counter()
+        image = raymitsuba.render(scene)
+        dr.backward(dr.mean(dr.square(image - target), axis=None))
+        dr.grad(params["camera.eye"]).numpy()
+        return time.perf_counter() - started
+
+    primal(), step()  # (compile the kernels)
+    p = statistics.median(primal() for _ in range(repeats))
+    s = statistics.median(step() for _ in range(repeats))
+    print(f"\ncost at {width} x {height}, spp 16 (k = 4), medians of {repeats}: primal {p:.2f} s, "
+          f"gradient step (translate2.offset, camera.eye) {s:.2f} s, ratio {s / p:.1f}")
+
+
+def figure(mi, path, width=64, height=48):
+    """The derivative images of a moving light (its shadow edge and shading), in a picture:
+    the reference, AD with the boundary terms (k = 4) and AD without them (the interior
+    term alone, as before issue 13)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from raymitsuba.plugins.whitted import boundary
+    from support_edges import finite_difference, forward
+
+    case = dict(text=SCENE, key="light1.position", direction=(0.6, 0.0, -0.8))
+    options = dict(width=width, height=height)
+    reference = finite_difference(mi, h=0.05, **case, **options)
+    full = forward(mi, spp=16, **case, **options)
+    wanted = boundary.wanted
+    boundary.wanted = lambda tracer, scene: False
+    try:
+        interior = forward(mi, spp=16, **case, **options)
+    finally:
+        boundary.wanted = wanted
+    panels = [("finite differences, 64 x 64 lattice", reference),
+              ("AD, k = 4, with boundary terms", full), ("AD, k = 4, interior only", interior)]
+    limit = np.percentile(np.abs(reference.sum(-1)), 99)
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    for ax, (title, image) in zip(axes, panels):
+        ax.imshow(image.sum(-1), cmap="RdBu_r", vmin=-limit, vmax=limit)
+        ax.set_title(title, fontsize=10)
+        ax.axis("off")
+    fig.suptitle("d image / d light1.position (along (0.6, 0, -0.8)), summed over r, g, b")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    print(f"wrote {path}")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--width", type=int, default=32)
+    ap.add_argument("--height", type=int, default=24)
+    ap.add_argument("--cost-size", default="256x192")
+    ap.add_argument("--only", default="accuracy,cost")
+    ap.add_argument("--figure", default=None, help="also write the derivative images (PNG)")
+    args = ap.parse_args()
+    from raymitsuba.backend import mitsuba
+
+    mi = mitsuba()
+    only = set(args.only.split(","))
+    if "accuracy" in only:
+        accuracy(mi, args.width, args.height)
+    if "cost" in only:
+        w, h = (int(v) for v in args.cost_size.split("x"))
+        cost(mi, w, h)
+    if args.figure:
+        figure(mi, args.figure)
+
+
+if __name__ == "__main__":
+    main()

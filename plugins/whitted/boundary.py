@@ -1,0 +1,647 @@
+"""Boundary terms: the derivative of the pixel-integrated image where an edge moves.
+
+A pixel's value is the integral of the Whitted tree's color f over the pixel (box filter),
+estimated on the uniform k x k lattice of ``spp = k^2`` samples. Where f jumps along a curve
+that moves with a parameter theta, the derivative of the integral has, besides the interior
+term that automatic differentiation of the samples gives, a boundary term (Reynolds
+transport) ``oint (f- - f+) v_n ds``. It is computed here, deterministically, on the same
+lattice, for these discontinuities:
+
+* **visibility**: silhouettes of analytic spheres, outlines of flat meshes (triangles),
+  creases between two surfaces and between faces of a flat mesh that are not coplanar;
+* **shadow edges** of point, spot and directional lights on the surface seen;
+* **checker lines** on the surface seen;
+* visibility edges and checker lines **seen along the specular chain**: the path that
+  follows, from the surface seen, the refracted ray where kt > 0 (the reflected one under
+  total internal reflection), else the reflected ray where kr > 0, up to CHAIN_DEPTH
+  bounces (so eta's derivative sees the checker lines seen through glass, and a mirror's
+  reflection of an edge moves with the geometry and the camera).
+
+Not covered (left out, documented in docs/gradients.md): total internal reflection
+switching on or off, the specular cut-off at N.L = 0, the spot's cone at s = 0, shadow
+edges seen in mirrors or through glass, the branches of the tree other than the specular
+chain, and a pair of samples with two edges between them.
+
+**The lattice.** The samples of all pixels form one uniform grid over the image, spacing
+1/k pixel (sample (sx, sy) of pixel (px, py) is lattice point X = px k + sx, Y = py k + sy).
+Each sample's *key* is recorded while the adjoint pass traces it (:meth:`Boundary.collect`):
+the shape and face hit (and the face's normal), the checker cell, for each light whether it
+is lit and what blocks it, the same of each bounce of the specular chain (with its total
+internal reflection flag), and the sample's color f. These keys take host memory
+(BYTES_PER_SAMPLE per sample): a lattice whose keys exceed the memory budget is refused
+(BudgetError) before anything is traced.
+
+**Pairs.** Two lattice neighbours (in a row or a column) whose keys differ have an edge
+between them. For each such pair a smooth signed *crossing function* g(ray, theta) is
+chosen, whose sign differs between the two samples:
+
+* a visibility edge of the nearer surface N (the other sample's ray misses N's primitive):
+  N's inside function -- r - |(c - o) x d| for a sphere, the least of the three normalized
+  edge functions for a triangle; else the other surface's; else (both rays meet both
+  primitives: a crease) the difference of the two primitives' hit distances;
+* a shadow edge of light j: the blocking primitive's inside function on the two samples'
+  shadow rays (from the attached hit point toward the attached light);
+* a checker line: u / size - m (or v), m the line between the two cells, of the attached
+  texture coordinates;
+* the same at bounce d of the specular chain, each sample's chain replayed with
+  derivatives (eta, the geometry, the camera) to that bounce.
+
+g is evaluated with derivatives (the camera's rays and the geometry as the keys attach them,
+``geometry_ad.py``; the lights' own parameters) at the two samples L, R and, detached, at
+the third lattice point O beside L. With g linear between them the crossing lies at the
+fraction w = g_L / (g_L - g_R) of the way from L to R, moving at du*/dtheta =
+-dg(u*)/dtheta / (g_R - g_L) lattice units, and the row (column) integral of f changes by
+(f_L - f_R) du*/dtheta. Each pair adds, to the pixel in which the crossing lies,
+
+    (f_L - f_R) du*/dtheta / k^2 * n_a^2
+
+where n_a is the component, along the pair's axis, of the edge's unit normal in the lattice
+(centred differences of g at L, R and their neighbours across the axis): the rows estimate the boundary integral, and so do the columns; the
+weights n_x^2 + n_y^2 = 1 combine them so that an edge parallel to an axis is counted by the
+pairs across it only. The term enters as a zero-valued surrogate with that derivative, so the
+primal image does not change by a bit. The crossing stands for the piece of edge in its
+lattice band; the term is shared by the pixels that piece lies in (:meth:`Boundary.spread`).
+f_L, f_R are the samples' colors (the one-sided limits
+within O(1/k) of a pixel). Pairs are processed in chunks (memory bounded), in reverse mode
+(``backward``) and forward mode (``forward``).
+"""
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from raymitsuba.options import GIB
+
+from .guards import BudgetError
+from .hits import MESH, SMOOTH, SPHERE
+from .tree import reflect, refract
+
+PAIRS_PER_CHUNK = 1 << 16
+NO_HIT = 0xFFFFFFFF
+COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
+VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER = 0, 1, 2, 3, 4
+CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
+# host bytes of one sample's keys (shape, face, distance, normal, checker cell, color and,
+# per bounce of the chain, shape, face, distance, cell, TIR flag) and per light (lit, blocker)
+BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 16 + 12 + CHAIN_DEPTH * (4 + 4 + 4 + 16 + 1)
+BYTES_PER_LIGHT = 1 + 8
+STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
+LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
+POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
+
+
+def wanted(tracer, scene):
+    """Whether a derivative pass needs the boundary terms: some key moves the geometry or the
+    camera, or a light's position or direction, or a material's eta has its gradient
+    enabled."""
+    if tracer.geometry_ad is not None and (tracer.geometry_ad.attached() or (
+            tracer.geometry_ad.camera is not None and tracer.geometry_ad.camera.attached())):
+        return True
+    if tracer.surfaces is not None and any(  # eta moves what is seen through glass
+            dr.grad_enabled(material.ior) for material in tracer.surfaces.layout.materials):
+        return True
+    for emitter in scene.emitters():
+        for name in ("position", "direction"):
+            value = getattr(emitter, name, None)
+            if value is not None and dr.grad_enabled(value):
+                return True
+    return False
+
+
+def lattice_side(spp):
+    """k for ``spp`` = k^2 samples per pixel (None: not a square lattice)."""
+    k = int(round(spp ** 0.5))
+    return k if k * k == spp else None
+
+
+def _evaluated(si):
+    """``si`` with the fields read here evaluated once (each ``.numpy()`` or later kernel
+    would otherwise trace the rays again)."""
+    dr.eval(si.t, si.p, si.n, si.sh_frame.n, si.uv, si.shape, si.prim_index)
+    return si
+
+
+def _merge(mask, si, other):
+    """The fields the boundary terms read (uv, shape) of ``si`` where ``mask``, else of
+    ``other``."""
+    out = dr.zeros(mi.SurfaceInteraction3f, dr.width(mask))
+    out.uv = dr.select(mask, si.uv, other.uv)
+    out.shape = dr.select(mask, si.shape, other.shape)
+    out.t = dr.select(mask, si.t, other.t)
+    return out
+
+
+class Boundary:
+    """The boundary terms of one adjoint pass over a ``width`` x ``height`` image sampled on
+    the k x k lattice (``spp`` = k^2) of ``sensor`` (see the module docstring)."""
+
+    def __init__(self, tracer, scene, sensor, width, height, spp, budget):
+        self.tracer, self.scene, self.sensor = tracer, scene, sensor
+        self.width, self.height, self.k = width, height, lattice_side(spp)
+        self.terms = tracer.scene_terms(scene)  # detached: keys only
+        self.lights = self.terms.direct
+        need = width * height * spp * (BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights))
+        if need > budget:
+            raise BudgetError(
+                f"the boundary terms' keys of {width} x {height} x {spp} samples take "
+                f"{need / GIB:.2g} GB, more than the memory budget ({budget / GIB:.2g} GB): "
+                "use a smaller image or spp, or a larger --memory-budget")
+        size = (height * self.k, width * self.k)
+        self.shape = np.full(size, NO_HIT, np.uint32)
+        self.prim = np.zeros(size, np.uint32)
+        self.t = np.full(size, np.inf, np.float32)
+        self.normal = np.zeros(size + (3,), np.float32)
+        self.cell = np.zeros(size + (2,), np.int64)  # checker (floor(u/s), floor(v/s)); 0: none
+        self.lit = np.zeros((len(self.lights),) + size, bool)
+        self.occluder = np.full((len(self.lights),) + size + (2,), NO_HIT, np.uint32)
+        self.color = np.zeros(size + (3,), np.float32)
+        # the specular chain (see chain_step): per bounce, the shape and face hit, its distance,
+        # the checker cell there and whether the bounce was a total internal reflection
+        depth = (CHAIN_DEPTH,) + size
+        self.chain_shape = np.full(depth, STOP, np.uint32)
+        self.chain_prim = np.zeros(depth, np.uint32)
+        self.chain_t = np.full(depth, np.inf, np.float32)
+        self.chain_cell = np.zeros(depth + (2,), np.int64)
+        self.chain_tir = np.zeros(depth, bool)
+
+    # -- the keys --------------------------------------------------------------------------------
+    def lattice_points(self, job, start, count):
+        """(Y, X) of the lanes of the job's pixels start .. start + count - 1."""
+        k, spp = self.k, self.k * self.k
+        pixel = job.pixel_index(start, count).numpy().astype(np.int64)
+        lane = np.arange(count * spp)
+        p, s = pixel[lane // spp], lane % spp
+        return (p // self.width) * k + s // k, (p % self.width) * k + s % k
+
+    def collect(self, job, start, count, color):
+        """Record the keys and colors of a chunk's samples (``color``: one lane per camera
+        ray of the job's pixels start .. start + count - 1)."""
+        y, x = self.lattice_points(job, start, count)
+        with dr.suspend_grad():
+            rays = job.rays(self.sensor, start, count)
+            keys = self.keys(rays)
+        color = dr.detach(color)
+        self.color[y, x] = np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1)
+        for name, values in keys.items():
+            target = getattr(self, name)
+            if name in ("lit", "occluder") or name.startswith("chain_"):
+                for j, v in enumerate(values):
+                    target[j][y, x] = v
+            else:
+                target[y, x] = values
+
+    def keys(self, rays):
+        """The keys of the samples of ``rays`` (detached), as numpy arrays."""
+        scene, terms, table = self.scene, self.terms, self.terms.geometry
+        si = _evaluated(self.tracer.intersect(scene, table, rays, coherent=True))
+        hit = si.is_valid()
+        shape = dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT)
+        out = {"shape": shape.numpy(), "prim": si.prim_index.numpy(), "t": si.t.numpy(),
+               "normal": np.stack([c.numpy() for c in (si.n.x, si.n.y, si.n.z)], -1)}
+        out["cell"] = self.checker_cell(terms, si, hit)
+        chain = {name: [] for name in ("chain_shape", "chain_prim", "chain_t", "chain_cell",
+                                       "chain_tir")}
+        ray_k, si_k, alive = rays, si, hit
+        for _ in range(CHAIN_DEPTH):
+            ray_k, go, tir = self.chain_step(terms, si_k, ray_k)
+            alive = alive & go
+            dr.eval(ray_k, go, tir)
+            si_k = _evaluated(self.tracer.intersect(scene, table, ray_k, coherent=False))
+            found = alive & si_k.is_valid()
+            chain["chain_shape"].append(dr.select(
+                found, dr.reinterpret_array(mi.UInt32, si_k.shape),
+                dr.select(alive, mi.UInt32(NO_HIT), mi.UInt32(STOP))).numpy())
+            chain["chain_prim"].append(si_k.prim_index.numpy())
+            chain["chain_t"].append(dr.select(found, si_k.t, dr.inf).numpy())
+            chain["chain_cell"].append(self.checker_cell(terms, si_k, found))
+            chain["chain_tir"].append((alive & tir).numpy())
+            alive = found
+        out.update(chain)
+        lit, occluder = [], []
+        n = self.tracer.facing_normal(si, rays)
+        for light in self.lights:
+            wi, dist, _ = light.illuminate(si.p)
+            active = hit & (dr.dot(n, wi) > 0)
+            shadow = self.tracer.spawn_ray(si, wi)
+            shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
+            blocker = scene.ray_intersect_preliminary(shadow, coherent=False, active=active)
+            blocked = active & blocker.is_valid()
+            dr.eval(blocked, blocker.shape, blocker.prim_index)
+            lit.append((active & ~blocked).numpy())
+            occluder.append(np.stack([
+                dr.select(blocked, dr.reinterpret_array(mi.UInt32, blocker.shape), NO_HIT).numpy(),
+                blocker.prim_index.numpy()], -1))
+        out["lit"], out["occluder"] = lit, occluder
+        return out
+
+    def checker_cell(self, terms, si, hit):
+        """(floor(u / size), floor(v / size)) of each hit on a checkered surface, else (0, 0)."""
+        layout = terms.surfaces.layout
+        if layout.checker_size is None:
+            return np.zeros((dr.width(hit), 2), np.int64)
+        slot = terms.surfaces.slot(si.shape, hit)
+        size = dr.gather(mi.Float, layout.checker_size, slot, hit)
+        checkered = hit & (size > 0)
+        size = dr.select(checkered, size, 1.0)
+        cu = dr.select(checkered, dr.floor(si.uv.x / size), 0.0)
+        cv = dr.select(checkered, dr.floor(si.uv.y / size), 0.0)
+        return np.stack([cu.numpy(), cv.numpy()], -1).astype(np.int64)
+
+    def chain_step(self, terms, si, ray):
+        """The next ray of the *specular chain* from the hit ``si`` of ``ray``: the refracted
+        ray where the surface has kt > 0 (the reflected one under total internal reflection),
+        else the reflected ray where kr > 0; (ray, whether there is one, TIR mask). Attached
+        when ``si`` and ``ray`` are (eta, the geometry, the camera)."""
+        surfaces = terms.surfaces
+        hit = si.is_valid()
+        slot = surfaces.slot(si.shape, hit)
+        kr = surfaces.get("reflectivity", slot, hit)
+        kt = surfaces.get("refractivity", slot, hit)
+        eta = surfaces.get("ior", slot, hit)
+        v, n = -ray.d, self.tracer.facing_normal(si, ray)
+        entering = dr.dot(si.n, ray.d) < 0
+        refracted, tir = refract(v, n, dr.select(entering, dr.rcp(eta), eta))
+        through = hit & (kt > 0) & ~tir
+        back = hit & ~through & ((kr > 0) | (kt > 0))
+        d = dr.select(through, refracted, reflect(v, n))
+        return self.tracer.spawn_ray(si, d), through | back, hit & (kt > 0) & tir
+
+    # -- the pairs -------------------------------------------------------------------------------
+    def pairs(self):
+        """Every lattice pair with an edge between: a dict of numpy arrays (one entry per
+        pair): L, R, O as (Y, X), the kind, the light (shadows), and what g is made of."""
+        kind_of = self.surface_kinds()
+        found = []
+        rows, cols = self.t.shape
+        for axis in (1, 0):  # rows (X, X + 1), then columns (Y, Y + 1)
+            ly, lx = np.nonzero(np.ones((rows - (axis == 0), cols - (axis == 1)), bool))
+            ry, rx = ly + (axis == 0), lx + (axis == 1)
+            # the neighbours of L and R across the axis, either side (one side at the border):
+            # they give the edge's normal at the crossing (centred differences)
+            if axis == 1:
+                beside = [(np.minimum(y + 1, rows - 1), x) for y, x in ((ly, lx), (ry, rx))] \
+                    + [(np.maximum(y - 1, 0), x) for y, x in ((ly, lx), (ry, rx))]
+            else:
+                beside = [(y, np.minimum(x + 1, cols - 1)) for y, x in ((ly, lx), (ry, rx))] \
+                    + [(y, np.maximum(x - 1, 0)) for y, x in ((ly, lx), (ry, rx))]
+            visibility = self.surface_differs(ly, lx, ry, rx, kind_of)
+            kind = np.full(len(ly), -1, np.int64)
+            light = np.zeros(len(ly), np.int64)
+            kind[visibility] = VISIBILITY
+            same = ~visibility & (self.shape[ly, lx] != NO_HIT)
+            # On one surface, a pair across one edge only: where a shadow edge and a checker
+            # line (or two shadow edges) pass between the same two samples, the jump f_L - f_R
+            # is the sum of both and belongs to neither alone (such pairs are left out: a
+            # share of the crossings that falls as 1/k).
+            edges = np.zeros(len(ly), np.int64)
+            for j in range(len(self.lights)):
+                edge = same & (self.lit[j][ly, lx] != self.lit[j][ry, rx])
+                edges += edge
+                kind[edge], light[edge] = SHADOW, j
+            lines = np.sum(self.cell[ly, lx] != self.cell[ry, rx], -1)  # u and v lines crossed
+            checker = same & (lines > 0)
+            edges += lines * checker
+            kind[checker] = CHECKER
+            kind[same & (edges > 1)] = -1
+            # Seen along the specular chain (mirrors, glass): the first bounce whose key
+            # differs, if the first hits are alike; a pair whose chains differ in total
+            # internal reflection, or across two edges at that bounce, is left out.
+            depth = np.full(len(ly), -1, np.int64)
+            pending = same & (edges == 0)
+            for d in range(CHAIN_DEPTH):
+                cs_l, cs_r = self.chain_shape[d][ly, lx], self.chain_shape[d][ry, rx]
+                tir = self.chain_tir[d][ly, lx] != self.chain_tir[d][ry, rx]
+                shape_differs = cs_l != cs_r
+                lines = np.sum(self.chain_cell[d][ly, lx] != self.chain_cell[d][ry, rx], -1)
+                here = pending & (shape_differs | (lines > 0) | tir)
+                ok = here & ~tir & ((shape_differs & (lines >= 0)) | (lines == 1))
+                ok &= (cs_l != STOP) & (cs_r != STOP)
+                kind[ok & shape_differs] = CHAIN_VISIBILITY
+                kind[ok & ~shape_differs] = CHAIN_CHECKER
+                depth[ok] = d
+                pending &= ~here
+            keep = kind >= 0
+            points = dict(L=(ly, lx), R=(ry, rx), LA=beside[0], RA=beside[1], LB=beside[2],
+                          RB=beside[3])
+            found.append(dict(axis=np.full(keep.sum(), axis), kind=kind[keep], light=light[keep],
+                              depth=depth[keep],
+                              **{name: (y[keep], x[keep]) for name, (y, x) in points.items()}))
+        return {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))
+                       if name in POINTS else np.concatenate([f[name] for f in found]))
+                for name in found[0]}
+
+    def surface_kinds(self):
+        """The HitTable kind bits by shape registry id."""
+        return self.terms.geometry.kind.numpy()
+
+    def surface_differs(self, ly, lx, ry, rx, kind_of):
+        """Whether two samples see different surfaces: another shape (or one a miss), or
+        another face of a flat mesh that is not coplanar with the first."""
+        sl, sr = self.shape[ly, lx], self.shape[ry, rx]
+        differs = sl != sr
+        faces = ~differs & (sl != NO_HIT) & (self.prim[ly, lx] != self.prim[ry, rx])
+        kind = kind_of[np.where(sl == NO_HIT, 0, np.minimum(sl, len(kind_of) - 1))]
+        flat = (kind & MESH != 0) & (kind & SMOOTH == 0)
+        bent = np.linalg.norm(self.normal[ly, lx] - self.normal[ry, rx], axis=-1) > COPLANAR
+        return differs | (faces & flat & bent)
+
+    # -- the surrogates --------------------------------------------------------------------------
+    def film_rays(self, y, x):
+        """The camera rays of lattice points (y, x) (numpy), the camera keys attached."""
+        k = self.k
+        pos = mi.Point2f(mi.Float(((x + 0.5) / (k * self.width)).astype(np.float32)),
+                         mi.Float(((y + 0.5) / (k * self.height)).astype(np.float32)))
+        ray, _ = self.sensor.sample_ray(time=0.0, sample1=0.5, sample2=pos,
+                                        sample3=mi.Point2f(0.5))
+        ray = mi.Ray3f(ray)
+        ad = self.tracer.geometry_ad
+        return ray if ad is None else ad.camera_rays(ray)
+
+    def surrogates(self, pairs, lo, hi):
+        """(Color3f surrogate per pair lo .. hi - 1, zero-valued, with the derivative of the
+        pair's term; the pixel each term goes to, numpy)."""
+        terms = self.tracer.scene_terms(self.scene)  # attached: the keys' derivatives
+        table = terms.geometry
+        sl = slice(lo, hi)
+        points = {name: tuple(a[sl] for a in pairs[name]) for name in POINTS}
+        L, R = points["L"], points["R"]
+        kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
+        depth = pairs["depth"][sl]
+        def g_at(names):  # g at the pair's points ``names`` (the first two: L and R)
+            rays = [self.film_rays(*points[name]) for name in names]
+            dr.eval(rays)
+            his = [_evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
+                   for ray in rays]
+            g = self.crossing(table, terms, rays, his, L, R, kind, light)
+            if (depth >= 0).any():
+                g = self.chain_crossing(table, terms, rays, his, L, R, kind, depth, g)
+            dr.eval(*g)
+            return g
+
+        # only L and R carry derivatives; the neighbours across give the normal, detached
+        g_l, g_r = g_at(("L", "R"))
+        with dr.suspend_grad():
+            g = g_at(POINTS)
+        gl, gr, gla, gra, glb, grb = (v.numpy().astype(np.float64) for v in g)
+        along = gr - gl  # dg per lattice unit along the pair's axis, across the crossing
+        valid = (np.sign(gl) != np.sign(gr)) & (np.abs(along) > 0) & np.isfinite(along)
+        w = np.clip(np.where(valid, gl / np.where(valid, gl - gr, 1.0), 0.5), 0.0, 1.0)
+
+        def span(a, b):  # lattice units between two neighbours across the axis
+            return np.maximum(np.abs(a[0] - b[0]) + np.abs(a[1] - b[1]), 1)
+
+        across = (1.0 - w) * (gla - glb) / span(points["LA"], points["LB"]) \
+            + w * (gra - grb) / span(points["RA"], points["RB"])
+        normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
+        df = self.jump(L, R, axis, w, kind)
+        scale = np.where(valid, normal2 / (self.k ** 2 * np.where(valid, along, 1.0)), 0.0)
+        g_star = (1.0 - mi.Float(w.astype(np.float32))) * g_l + mi.Float(w.astype(np.float32)) * g_r
+        rate = -(g_star - dr.detach(g_star)) * mi.Float(scale.astype(np.float32))
+        surrogate = mi.Color3f(*(mi.Float(np.ascontiguousarray(df[:, c])) for c in range(3))) * rate
+        return surrogate, self.spread(L, axis, w, np.abs(across) / np.maximum(np.abs(along), 1e-30))
+
+    def jump(self, L, R, axis, w, kind):
+        """f_L - f_R across each pair's crossing: the colors of two rays traced just either
+        side of it (LIMIT lattice units, within the pair), where they see what L and R see
+        (else the colors of L and R themselves)."""
+        ly, lx = L
+        c = np.where(axis == 1, lx, ly) + 0.5 + w
+        step = np.minimum(LIMIT, 0.5 * np.minimum(w, 1.0 - w))
+        colors, shapes = [], []
+        with dr.suspend_grad():
+            for offset in (-step, step):
+                at = c + offset
+                y = np.where(axis == 1, ly + 0.5, at)
+                x = np.where(axis == 1, at, lx + 0.5)
+                ray = self.film_rays(y - 0.5, x - 0.5)
+                color = self.tracer.trace(self.scene, ray, self.terms).color
+                colors.append(np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1))
+                si = self.scene.ray_intersect_preliminary(ray)
+                shapes.append(dr.select(si.is_valid(), dr.reinterpret_array(mi.UInt32, si.shape),
+                                        NO_HIT).numpy())
+        same = (shapes[0] == self.shape[L]) & (shapes[1] == self.shape[R])
+        return np.where(same[:, None], colors[0] - colors[1], self.color[L] - self.color[R])
+
+    def spread(self, L, axis, w, slope):
+        """Where each pair's term goes: (pixel (n, 3), fraction (n, 3)) numpy. The crossing
+        stands for the piece of edge inside its band (the lattice row, or column, of unit
+        width), which runs along the axis over ``slope`` lattice units centred on the crossing:
+        its term is shared by the pixels that piece lies in, by length (at most three)."""
+        k = self.k
+        ly, lx = L
+        band = np.where(axis == 1, ly, lx) // k  # the pixel row (rows) or column (columns)
+        c = np.where(axis == 1, lx, ly) + 0.5 + w  # the crossing along the axis, lattice units
+        lo, hi = c - 0.5 * slope, c + 0.5 * slope
+        first = np.floor(c / k).astype(np.int64) - 1
+        limit = np.where(axis == 1, self.width, self.height)
+        pixels, fractions = [], []
+        for i in range(3):
+            along = first + i
+            overlap = np.clip(np.minimum(hi, (along + 1) * k) - np.maximum(lo, along * k), 0, None)
+            fraction = np.where(slope > 0, overlap / np.where(slope > 0, slope, 1.0),
+                                float(i == 1))
+            inside = (along >= 0) & (along < limit)
+            fractions.append(np.where(inside, fraction, 0.0))
+            along = np.clip(along, 0, limit - 1)
+            pixels.append(np.where(axis == 1, band * self.width + along, along * self.width + band))
+        return np.stack(pixels, -1), np.stack(fractions, -1)
+
+    def crossing(self, table, terms, rays, his, L, R, kind, light):
+        """g at the rays of the pair's POINTS (Floats, attached)."""
+        count = len(kind)
+        choice = self.visibility(table, rays, (self.shape[L], self.prim[L], self.t[L]),
+                                 (self.shape[R], self.prim[R], self.t[R]))
+        # shadows: the blocking primitive's inside function on the shadow rays
+        if len(self.lights):
+            blocked_l = ~self.lit[light, L[0], L[1]]
+            blocker = np.where(blocked_l[:, None], self.occluder[light, L[0], L[1]],
+                               self.occluder[light, R[0], R[1]])
+            for j, source in enumerate(self.lights):
+                mask = (kind == SHADOW) & (light == j)
+                if not mask.any():
+                    continue
+                shadows = []
+                for si in his:
+                    wi, _, _ = source.illuminate(si.p)
+                    shadows.append(mi.Ray3f(si.p, wi))
+                edge = self.crossed_edge(table, shadows, blocker[:, 0], blocker[:, 1])
+                for i, shadow in enumerate(shadows):
+                    gs = self.inside(table, shadow, blocker[:, 0], blocker[:, 1], edge)
+                    choice[i] = dr.select(mi.Bool(mask), gs, choice[i])
+        # checker lines
+        if (kind == CHECKER).any():
+            choice = self.checker_crossing(terms, his, self.cell[L], self.cell[R],
+                                           kind == CHECKER, choice)
+        return choice
+
+    def visibility(self, table, rays, left, right):
+        """g of a visibility edge between the rays of L and R (the first two of ``rays``),
+        which see (shape, prim, t) ``left`` and ``right``: N is the nearer; N's inside
+        function where the other ray's line misses N's primitive, else the other's, else (a
+        crease) the difference of the two primitives' distances."""
+        near_is_l = left[2] <= right[2]
+        n_shape, n_prim = (np.where(near_is_l, a, b) for a, b in zip(left[:2], right[:2]))
+        f_shape, f_prim = (np.where(near_is_l, b, a) for a, b in zip(left[:2], right[:2]))
+        n_edge = self.crossed_edge(table, rays, n_shape, n_prim)
+        f_edge = self.crossed_edge(table, rays, f_shape, f_prim)
+        gn = [self.inside(table, ray, n_shape, n_prim, n_edge) for ray in rays]
+        gf = [self.inside(table, ray, f_shape, f_prim, f_edge) for ray in rays]
+        crease = [self.depth(table, ray, n_shape, n_prim) - self.depth(table, ray, f_shape, f_prim)
+                  for ray in rays]
+        dr.eval(gn, gf, crease)
+        gn_l, gn_r = gn[0].numpy(), gn[1].numpy()
+        gf_l, gf_r = gf[0].numpy(), gf[1].numpy()
+        use_n = np.sign(gn_l) != np.sign(gn_r)
+        use_f = ~use_n & (f_shape < STOP) & (np.sign(gf_l) != np.sign(gf_r))
+        return [dr.select(mi.Bool(use_n), a, dr.select(mi.Bool(use_f), b, c))
+                for a, b, c in zip(gn, gf, crease)]
+
+    def chain_crossing(self, table, terms, rays, his, L, R, kind, depth, g):
+        """g of the pairs whose edge is seen along the specular chain, at bounce ``depth``:
+        each ray's chain replayed, attached, then the visibility or checker function there."""
+        finals = []
+        for ray, si in zip(rays, his):
+            final_ray, final_si = ray, si
+            for d in range(int(depth.max()) + 1):
+                ray, _, _ = self.chain_step(terms, si, ray)
+                dr.eval(ray)
+                si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
+                at = mi.Bool(depth == d)
+                final_ray = mi.Ray3f(dr.select(at, ray.o, final_ray.o),
+                                     dr.select(at, ray.d, final_ray.d))
+                final_si = _merge(at, si, final_si)
+            finals.append((final_ray, final_si))
+        d = np.maximum(depth, 0)
+        left = tuple(a[d, L[0], L[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
+        right = tuple(a[d, R[0], R[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
+        vis = self.visibility(table, [r for r, _ in finals], left, right)
+        mask = mi.Bool(kind == CHAIN_VISIBILITY)
+        g = [dr.select(mask, a, b) for a, b in zip(vis, g)]
+        if (kind == CHAIN_CHECKER).any():
+            cl, cr = self.chain_cell[d, L[0], L[1]], self.chain_cell[d, R[0], R[1]]
+            g = self.checker_crossing(terms, [s for _, s in finals], cl, cr,
+                                      kind == CHAIN_CHECKER, g)
+        return g
+
+    def checker_crossing(self, terms, his, cl, cr, which, g):
+        """g = u / size - m (or v) of the pairs ``which`` (numpy mask), at the hits ``his``
+        (the hit of the first ray gives the size); cl, cr: the cells at L and R."""
+        count = len(which)
+        coord = np.where(cl[:, 0] != cr[:, 0], 0, 1)
+        line = np.maximum(cl, cr)[np.arange(count), coord].astype(np.float32)
+        slot = terms.surfaces.slot(his[0].shape, his[0].is_valid())
+        size = dr.gather(mi.Float, terms.surfaces.layout.checker_size, slot)
+        size = dr.select(size > 0, size, 1.0)
+        mask = mi.Bool(which)
+        out = list(g)
+        for i, si in enumerate(his):
+            u = dr.select(mi.Bool(coord == 0), si.uv.x, si.uv.y)
+            out[i] = dr.select(mask, u / size - mi.Float(line), out[i])
+        return out
+
+    def inside(self, table, ray, shape, prim, edge=None):
+        """The inside function of primitive (shape, prim) for each ray (numpy ids): > 0 where
+        the ray's line meets it (see the module docstring). For a triangle, ``edge`` (numpy,
+        per lane: 0, 1, 2, or -1 for the least of the three) picks the edge function."""
+        ids = mi.UInt32(np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        valid = mi.Bool(shape != NO_HIT) & (ids < table.size)
+        kind = dr.gather(mi.UInt32, table.kind, ids, valid)
+        row = dr.gather(mi.UInt32, table.first, ids, valid)
+        out = mi.Float(-1.0)
+        d = dr.normalize(ray.d)
+        if table.has_spheres:
+            sphere = valid & ((kind & SPHERE) != 0)
+            c = dr.gather(mi.Point3f, table.center, row, sphere)
+            r = dr.gather(mi.Float, table.radius, row, sphere)
+            out = dr.select(sphere, r - dr.norm(dr.cross(c - ray.o, d)), out)
+        if table.has_meshes:
+            mesh = valid & ((kind & MESH) != 0)
+            e = self.edge_functions(table, ray, d, row, prim, mesh)
+            g = dr.minimum(dr.minimum(e[0], e[1]), e[2])
+            if edge is not None:
+                which = mi.UInt32(np.maximum(edge, 0).astype(np.uint32))
+                chosen = dr.select(which == 0, e[0], dr.select(which == 1, e[1], e[2]))
+                g = dr.select(mi.Bool(edge >= 0), chosen, g)
+            out = dr.select(mesh, g, out)
+        return out
+
+    def edge_functions(self, table, ray, d, row, prim, mesh):
+        """The three normalized edge functions of each lane's face, signed to be > 0 inside."""
+        _, (p0, p1, p2) = table.corners(row, mi.UInt32(prim.astype(np.uint32)), mesh)
+        side = dr.dot(dr.detach(dr.cross(p1 - p0, p2 - p0)), dr.detach(d))
+        sigma = dr.select(side <= 0, 1.0, -1.0)
+        return [sigma * dr.dot(dr.cross(a - ray.o, b - ray.o), d) / dr.norm(b - a)
+                for a, b in ((p0, p1), (p1, p2), (p2, p0))]
+
+    def crossed_edge(self, table, rays, shape, prim):
+        """Per pair (numpy): the edge of the face (shape, prim) whose function changes sign
+        between the rays of L and R (-1: none, or not a face)."""
+        ids = mi.UInt32(np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        valid = mi.Bool(shape != NO_HIT) & (ids < table.size)
+        if not table.has_meshes:
+            return np.full(len(shape), -1)
+        kind = dr.gather(mi.UInt32, table.kind, ids, valid)
+        row = dr.gather(mi.UInt32, table.first, ids, valid)
+        mesh = valid & ((kind & MESH) != 0)
+        with dr.suspend_grad():
+            edges = [self.edge_functions(table, ray, dr.normalize(ray.d), row, prim, mesh)
+                     for ray in rays[:2]]
+            dr.eval(edges, mesh)
+            el, er = ([e.numpy() for e in side] for side in edges)
+        flips = np.stack([np.sign(a) != np.sign(b) for a, b in zip(el, er)], -1)
+        edge = np.where(flips.any(-1), np.argmax(flips, -1), -1)
+        return np.where(mesh.numpy(), edge, -1)
+
+    def depth(self, table, ray, shape, prim):
+        """The distance along each ray to the primitive (shape, prim)'s plane or sphere."""
+        ids = mi.UInt32(np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        valid = mi.Bool(shape != NO_HIT) & (ids < table.size)
+        kind = dr.gather(mi.UInt32, table.kind, ids, valid)
+        row = dr.gather(mi.UInt32, table.first, ids, valid)
+        out = mi.Float(0.0)
+        if table.has_spheres:
+            sphere = valid & ((kind & SPHERE) != 0)
+            c = dr.gather(mi.Point3f, table.center, row, sphere)
+            r = dr.gather(mi.Float, table.radius, row, sphere)
+            oc = ray.o - c
+            a, b = dr.squared_norm(ray.d), dr.dot(oc, ray.d)
+            root = dr.safe_sqrt(dr.square(b) - a * (dr.squared_norm(oc) - dr.square(r)))
+            out = dr.select(sphere, (-b - root) / a, out)
+        if table.has_meshes:
+            mesh = valid & ((kind & MESH) != 0)
+            _, (p0, p1, p2) = table.corners(row, mi.UInt32(prim.astype(np.uint32)), mesh)
+            n = dr.cross(p1 - p0, p2 - p0)
+            out = dr.select(mesh, dr.dot(n, p0 - ray.o) / dr.dot(n, ray.d), out)
+        return out
+
+    # -- the derivative ----------------------------------------------------------------------------
+    def backward(self, grad_in):
+        """Propagate the image's adjoint ``grad_in`` (numpy (H W, 3)) through the terms."""
+        pairs = self.pairs()
+        total = len(pairs["kind"])
+        for lo in range(0, total, PAIRS_PER_CHUNK):
+            hi = min(lo + PAIRS_PER_CHUNK, total)
+            with dr.resume_grad():
+                surrogate, (pixel, fraction) = self.surrogates(pairs, lo, hi)
+                weight = np.einsum("nj,njc->nc", fraction, grad_in[pixel]).astype(np.float32)
+                dr.backward_from(surrogate * mi.Color3f(
+                    *(mi.Float(np.ascontiguousarray(weight[:, c])) for c in range(3))),
+                    flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+
+    def forward(self, grads, last):
+        """Add the terms' tangents to ``grads`` (numpy (H W, 3)), the parameters' tangents
+        set; ``last``: clear them after."""
+        pairs = self.pairs()
+        total = len(pairs["kind"])
+        for lo in range(0, max(total, 1), PAIRS_PER_CHUNK):
+            hi = min(lo + PAIRS_PER_CHUNK, total)
+            if hi <= lo:
+                break
+            with dr.resume_grad():
+                surrogate, (pixel, fraction) = self.surrogates(pairs, lo, hi)
+                final = last and hi == total
+                dr.forward_to(surrogate, flags=dr.ADFlag.AllowNoGrad | (
+                    dr.ADFlag.Default if final else dr.ADFlag.ClearEdges | dr.ADFlag.ClearInterior))
+                tangent = np.stack([dr.grad(surrogate)[c].numpy() for c in range(3)], -1)
+            for j in range(3):
+                np.add.at(grads, pixel[:, j], tangent * fraction[:, j:j + 1])

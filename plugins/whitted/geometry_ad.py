@@ -1,0 +1,158 @@
+"""Derivatives with respect to the geometry and the camera: how the parameter keys that move
+shapes (``sphere1.center``, ``translate2.offset``, ``triangle1.v0``, ...) and the camera
+(``camera.eye``, ``.lookat``, ``.up``, ``.fov``) reach the rays and the hits.
+
+The integrator's tables hold the geometry as Mitsuba has it (``hits.HitTable``: the
+spheres' centres and radii, the meshes' vertex positions; the sensor's rays): detached,
+and exactly the numbers Embree traces. A :class:`GeometryAD` (set on the tracer,
+``Tracer.geometry_ad``, by whoever owns the keys: ``raymitsuba.parameters``) attaches
+the derivative of each key to them, as the linear map the key's change makes:
+
+    g_attached = replace_grad(g, g + J (k - detach(k)))
+
+with ``k`` the key's value (its gradient enabled), ``g`` the table's entries the key moves
+and ``J = dg/dk`` (host numbers, computed by the key's owner). Its *value* is the table's,
+bit for bit (the primal image does not change), its derivative ``J dk``. With the hits
+re-intersected differentiably against the attached geometry (``HitTable.intersect``), the
+hit distance, point, normal and shading follow the shapes: the *interior* derivative of
+the image (what changes continuously at a fixed pixel sample). Edges that move (a
+silhouette crossing a sample) are not part of it.
+
+The camera (:class:`CameraAD`): each camera ray keeps Mitsuba's sensor's value; its
+derivative is that of the ray built in Dr.Jit from the attached eye, look-at point, up
+vector and field of view through the same point of the image plane:
+
+    q = (d . x0, d . y0, 1) / (d . z0)          (d: the sensor's ray; x0, y0, z0: its frame)
+    d(theta) = normalize(s (q_x x + q_y y) + z),  s = tan(fov / 2) / tan(fov0 / 2)
+    o(theta) = eye
+
+where (x, y, z) is Mitsuba's look-at frame (z = normalize(lookat - eye), x = normalize(up x
+z), y = z x x) of the attached values, (x0, y0, z0) the same of the values at which the
+sensor was built. s is the same ratio whether the fov is vertical (COMP 575) or horizontal
+(MIT 6.837): at a fixed aspect both tangents scale alike.
+"""
+
+import copy
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+
+def key_delta(value):
+    """``k - detach(k)`` per component of a key's value (a list of one-lane Floats): zero,
+    with the key's derivative."""
+    components = [value] if isinstance(value, mi.Float) else [value.x, value.y, value.z]
+    return [c - dr.detach(c) for c in components]
+
+
+def linear(jacobian, deltas):
+    """sum_i J[:, i] delta_i as a Float of len(J) lanes (jacobian: float64 (n, m))."""
+    out = None
+    for i, delta in enumerate(deltas):
+        column = jacobian[:, i]
+        if not np.any(column):
+            continue
+        term = mi.Float(column.astype(np.float32)) * delta
+        out = term if out is None else out + term
+    return out
+
+
+def look_at_frame(eye, lookat, up):
+    """Mitsuba's look-at frame (x, y, z) of Dr.Jit or numpy vectors."""
+    z = dr.normalize(lookat - eye)
+    x = dr.normalize(dr.cross(up, z))
+    return x, dr.cross(z, x), z
+
+
+class CameraAD:
+    """The camera's keys: ``values`` {field: Dr.Jit value} for the fields that are keys (eye,
+    lookat, up: Point3f; fov: Float, degrees as written), ``start`` {field: numpy value} of
+    all four at which the sensor was built (eye, lookat, up, fov as written)."""
+
+    def __init__(self, values, start):
+        self.values, self.start = values, start
+
+    def attached(self):
+        return any(dr.grad_enabled(v) for v in self.values.values())
+
+    def rays(self, ray):
+        """``ray`` (the sensor's camera rays) with the camera's derivative attached."""
+        if not self.attached():
+            return ray
+        # (opaque: data, not constants of the kernels, which a fit would compile at each step)
+        start = {k: mi.Vector3f(*(dr.opaque(mi.Float, float(v)) for v in self.start[k]))
+                 for k in ("eye", "lookat", "up")}
+        x0, y0, z0 = look_at_frame(start["eye"], start["lookat"], start["up"])
+        d = ray.d
+        q = mi.Vector2f(dr.dot(d, x0), dr.dot(d, y0)) / dr.dot(d, z0)
+        vec = {k: mi.Vector3f(self.values[k]) if k in self.values else mi.Vector3f(start[k])
+               for k in ("eye", "lookat", "up")}
+        x, y, z = look_at_frame(vec["eye"], vec["lookat"], vec["up"])
+        s = mi.Float(1.0)
+        if "fov" in self.values:
+            half = dr.deg2rad(self.values["fov"]) * 0.5
+            s = dr.tan(half) / dr.opaque(mi.Float, float(np.tan(np.radians(self.start["fov"])
+                                                                * 0.5)))
+        direction = dr.normalize(s * (q.x * x + q.y * y) + z)
+        out = mi.Ray3f(ray)
+        out.o = dr.replace_grad(ray.o, mi.Point3f(vec["eye"]))
+        out.d = dr.replace_grad(ray.d, direction)
+        return out
+
+
+class GeometryAD:
+    """The keys that move shapes and the camera (see the module docstring).
+
+    ``spheres``: {shape id: [(key value, J_center (3, m), J_radius (1, m))]};
+    ``meshes``: {shape id: [(key value, J (3 V, m))]} (V the mesh's vertices);
+    ``camera``: a CameraAD or None."""
+
+    def __init__(self, spheres=None, meshes=None, camera=None):
+        self.spheres = spheres or {}
+        self.meshes = meshes or {}
+        self.camera = camera
+
+    def attached(self):
+        """Whether some key has its gradient enabled."""
+        keys = [v for entries in (*self.spheres.values(), *self.meshes.values())
+                for v, *_ in entries]
+        return any(dr.grad_enabled(v) for v in keys)
+
+    def camera_rays(self, ray):
+        return ray if self.camera is None else self.camera.rays(ray)
+
+    def table(self, table):
+        """``table`` (a HitTable), or a copy whose geometry carries the keys' derivatives."""
+        if not self.attached():
+            return table
+        rows = table.rows_by_name
+        out = copy.copy(table)
+        out.moving = True
+        if self.spheres and table.has_spheres:
+            count = dr.width(table.radius)
+            center, radius = dr.zeros(mi.Point3f, count), dr.zeros(mi.Float, count)
+            for name, entries in self.spheres.items():
+                row = mi.UInt32(rows[name])
+                for value, j_center, j_radius in entries:
+                    deltas = key_delta(value)
+                    c = [linear(j_center[i:i + 1], deltas) for i in range(3)]
+                    if any(t is not None for t in c):
+                        c = mi.Point3f(*[mi.Float(0.0) if t is None else t for t in c])
+                        dr.scatter_add(center, c, row)
+                    r = linear(j_radius, deltas)
+                    if r is not None:
+                        dr.scatter_add(radius, r, row)
+            out.center = dr.replace_grad(table.center, table.center + center)
+            out.radius = dr.replace_grad(table.radius, table.radius + radius)
+        if self.meshes and table.has_meshes:
+            offset = dr.zeros(mi.Float, dr.width(table.positions))
+            for name, entries in self.meshes.items():
+                first = rows[name]
+                for value, jacobian, in entries:
+                    moved = linear(jacobian, key_delta(value))
+                    if moved is not None:
+                        index = dr.arange(mi.UInt32, len(jacobian)) + 3 * first
+                        dr.scatter_add(offset, moved, index)
+            out.positions = dr.replace_grad(table.positions, table.positions + offset)
+        return out
