@@ -1,27 +1,35 @@
 """Adaptive anti-aliasing (the integrator's ``aa`` > 0): which pixels get more samples
 (decided on the host, detached), and how they are traced.
 
-1. A first pass traces every pixel at the render's sampling (one sample: the centre).
-2. A pixel that differs from one of its 8 neighbours by more than the threshold (in
-   some channel, linear values) is *refined*: it is traced again with a stratified
-   n x n set of samples (``LEVELS[0]``, the centres of an n x n grid of strata).
+1. A first pass traces every pixel at the render's sampling (one sample: the centre),
+   the plain image's pass, and one sample at each pixel *corner*: the (W + 1) x (H + 1)
+   lattice of the pixels' corners (``camera.corner_rays``), each corner shared by the
+   four pixels around it. A pixel's five samples (centre and four corners) cost about two
+   samples per pixel, and a straight edge that crosses a pixel always separates two of its
+   corners, however little of it it covers.
+2. A pixel whose five samples differ by more than the threshold (in some channel, linear
+   values) is *refined*: it is traced again with a stratified n x n set of samples
+   (``LEVELS[0]``, the centres of an n x n grid of strata). A detail thinner than a pixel
+   that the centres miss is found where it crosses a corner.
 3. A refined pixel whose n x n samples still differ from each other by more than
    ``AGAIN`` times the threshold is refined again with the next level's grid (and so
    on, if there are more levels). The samples of a pixel on an edge always differ;
    ``AGAIN`` keeps the finer grid for edges of high contrast, where it shows.
 
 Each pixel's value is the box-filtered average of its samples at the last level it
-reached. The choice depends only on the image's values, so it is the same on every
-run; it is a detached decision: gradients flow through the values of the samples,
-never through which pixels were refined. :func:`refine` runs steps 2 and 3 after the
+reached (the corners only decide). The choice of a pixel depends only on its own samples'
+values, so it is the same on every run and however the image is cut into bands of rows; it
+is a detached decision: gradients flow through the values of the samples, never through
+which pixels were refined. :func:`refine` runs the corners and steps 2 and 3 after the
 integrator's first pass and returns the :class:`Plan`, the primal render's decisions;
 the adjoint passes re-trace each pixel with the samples its value came from
 (:meth:`Plan.adjoint_jobs`).
 
 When to use which: ``spp`` 1 (the default) is the exact pixel-centre image that numeric
-tests and fits against such a target want; ``aa`` (e.g. 0.02) gives clean edges at a
-fraction of the cost of uniform supersampling, for images to look at; uniform ``spp``
-n^2 treats every pixel alike (a fit to a supersampled target, or a reference).
+tests and fits against such a target want; ``aa`` (the command line's ``--aa`` alone:
+the threshold ``raymitsuba.options`` gives it) gives clean edges at a fraction of the cost
+of uniform supersampling, for images to look at; uniform ``spp`` n^2 treats every pixel
+alike (a fit to a supersampled target, or a reference).
 """
 
 from __future__ import annotations
@@ -31,7 +39,7 @@ from typing import NamedTuple
 import drjit as dr
 import numpy as np
 
-from .camera import pixel_means, pixel_spread
+from .camera import corner_rays, pixel_means, pixel_spread
 from .chunks import Job
 
 LEVELS = (4, 8)  # n of the n x n grids of the successive refinements
@@ -39,24 +47,49 @@ AGAIN = 5.0  # a refined pixel is refined again where its samples differ by AGAI
 BAND = 1024  # rows compared at a time (bounded host memory on huge images)
 
 
-def contrast_mask(image, threshold):
-    """(H, W) bool: the pixels of ``image`` (H, W, 3) that differ from one of their 8
-    neighbours by more than ``threshold`` in some channel."""
+def contrast_mask(image, corners, threshold):
+    """(H, W) bool: the pixels of ``image`` (H, W, 3) whose centre and four corners (of
+    ``corners``, (H + 1, W + 1, 3)) differ by more than ``threshold`` in some channel."""
     height, width = image.shape[:2]
     mask = np.zeros((height, width), bool)
     for top in range(0, height, BAND):
         bottom = min(top + BAND, height)
-        lo, hi = max(top - 1, 0), min(bottom + 1, height)
-        # edges repeated: a pixel outside the image is its neighbour inside, no difference
-        padded = np.pad(image[lo:hi], ((1, 1), (1, 1), (0, 0)), mode="edge")
-        r0 = top - lo + 1
-        centre = padded[r0:r0 + bottom - top, 1:width + 1]
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                if dy or dx:
-                    nb = padded[r0 + dy:r0 + dy + bottom - top, 1 + dx:width + 1 + dx]
-                    mask[top:bottom] |= (np.abs(centre - nb) > threshold).any(axis=-1)
+        low = high = image[top:bottom]
+        for dy in (0, 1):
+            for dx in (0, 1):
+                corner = corners[top + dy:bottom + dy, dx:width + dx]
+                low, high = np.minimum(low, corner), np.maximum(high, corner)
+        mask[top:bottom] = ((high - low) > threshold).any(axis=-1)
     return mask
+
+
+class CornerJob:
+    """The pixel corners of rows ``top`` .. ``bottom`` (both included: a band of pixel rows
+    top .. bottom - 1 has bottom - top + 1 rows of corners) of a ``width`` x ``height``
+    image, one sample each: a job for ``chunks.Chunker``."""
+
+    spp = 1
+
+    def __init__(self, width, height, top, bottom):
+        self.width, self.height = width, height  # the image
+        self.first = top * (width + 1)  # the first corner's number
+        self.count = (bottom - top + 1) * (width + 1)  # how many corners
+
+    def rays(self, sensor, start, count):
+        return corner_rays(sensor, self.width, self.height, self.first + start, count)
+
+
+def trace_corners(chunker, width, height, top, bottom):
+    """The values ((bottom - top + 1, W + 1, 3) float32) of the corners of the pixel rows
+    ``top`` .. ``bottom`` - 1, traced through ``chunker``."""
+    job = CornerJob(width, height, top, bottom)
+    values = np.empty((job.count, 3), np.float32)
+
+    def visit(start, count, color):
+        values[start:start + count] = dr.ravel(color).numpy().reshape(-1, 3)
+
+    chunker.run(job, visit)
+    return values.reshape(bottom - top + 1, width + 1, 3)
 
 
 class Level(NamedTuple):
@@ -106,23 +139,23 @@ class Plan:
         return jobs
 
 
-def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, rows=None):
+def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0):
     """Refine the first pass ``image`` ((H, W, 3) float32, C-contiguous, traced at ``spp``
-    samples per pixel) at the contrast ``threshold``: every level's pixels are traced by
-    ``chunker`` (each level first admitted by the guards' ``estimate``, its pixels being
-    known) and their values written into ``image``, in place. Returns the :class:`Plan`.
+    samples per pixel) at the contrast ``threshold``: the pixel corners, then every level's
+    pixels are traced by ``chunker`` (each job first admitted by the guards' ``estimate``)
+    and the levels' values written into ``image``, in place. Returns the :class:`Plan`.
 
     A band: ``image`` holds the rows ``first_row`` .. ``first_row`` + H - 1 of an image of
-    ``height`` rows (default: H, the whole image), and only the pixels of ``rows`` (top,
-    bottom) are refined (default: all of them). A band's rows need their neighbours' rows
-    above and below (where the image has them) for the contrast test: the decisions, and
-    so the values, are then those of the whole image's render."""
+    ``height`` rows (default: H, the whole image); each pixel's decision depends on its own
+    centre and corners only, so the band's values are those rows of the whole image's."""
     band_height, width = image.shape[:2]
     height = height or band_height
-    top, bottom = rows or (first_row, first_row + band_height)
+    estimate.admit((width + 1) * (band_height + 1), 1)  # the corners
+    corners = trace_corners(chunker, width, height, first_row, first_row + band_height)
     values = image.reshape(-1, 3)
-    mask = contrast_mask(image, threshold)[top - first_row:bottom - first_row]
-    candidates = (np.flatnonzero(mask) + top * width).astype(np.uint32)
+    candidates = (np.flatnonzero(contrast_mask(image, corners, threshold))
+                  + first_row * width).astype(np.uint32)
+    del corners
     offset = first_row * width  # the pixel number of values[0]
     levels = []
     for n in LEVELS:

@@ -8,6 +8,9 @@ Conventions, decided here once:
 * One sample per pixel goes through the pixel centre; ``spp = n^2`` samples use the
   centres of an n x n grid of strata; other counts are stratified in x with a
   golden-ratio sequence in y.
+* Pixel *corners* (adaptive anti-aliasing's first pass, ``antialias.py``) are the
+  (W + 1) x (H + 1) points at whole pixel coordinates, numbered row-major from the image's
+  top-left corner: corner (x, y) is shared by the pixels (x - 1 .. x, y - 1 .. y).
 """
 
 import drjit as dr
@@ -51,6 +54,16 @@ def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None):
     row = pixel // width
     film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
                           (mi.Float(row) + offset.y) / height)
+    ray, _ = sensor.sample_ray(time=0.0, sample1=0.5, sample2=film_pos, sample3=mi.Point2f(0.5))
+    return mi.Ray3f(ray)
+
+
+def corner_rays(sensor, width, height, first, count):
+    """One camera ray through each of the pixel corners ``first`` .. ``first + count - 1``
+    (numbered as in the module docstring) of a ``width`` x ``height`` image."""
+    corner = dr.arange(mi.UInt32, count) + dr.opaque(mi.UInt32, first)
+    row = corner // (width + 1)
+    film_pos = mi.Point2f(mi.Float(corner - row * (width + 1)) / width, mi.Float(row) / height)
     ray, _ = sensor.sample_ray(time=0.0, sample1=0.5, sample2=film_pos, sample3=mi.Point2f(0.5))
     return mi.Ray3f(ray)
 

@@ -7,11 +7,26 @@ A refused request raises :class:`BudgetError`, one line saying why and what woul
 * a render whose average pixel's ray tree alone exceeds the memory budget, or whose
   estimated time is beyond the time limit (:class:`Estimate`): the rays are estimated
   from the probe's rays per camera ray (``chunks.probe``), job by job as the render's jobs
-  become known (the first pass, then each anti-aliasing level).
+  become known (the first pass, then each anti-aliasing job), and their time at the rays
+  per second of this machine (:func:`rays_per_second`).
+
+**Rays per second** are measured, not assumed: the probe's trace (about 10^3 camera rays,
+traced before every render anyway) is timed by the execution time of its kernels in
+Dr.Jit's kernel history, so compilation, cache loads and Python are left out (on the CPU
+and on a GPU alike). The first probes of a process that trace at least ``MEASURED_RAYS``
+rays in all make the measurement, kept for the rest of the process: every later render
+of the process is judged at the same rate, and a request is refused or not the same way on
+every run unless its estimate is within the machine's noise (a factor well under 2) of the
+limit. The probe's kernels are small, so the rate measured is a lower bound of what large
+chunks reach: the estimate errs on the long side. Until a measurement is made (or while
+another user of the kernel history, such as a test counting kernels, has it on: its
+records are not taken from it) the rate is ``NOMINAL_RAYS_PER_SECOND``.
 
 A single pixel whose tree exceeds the budget once traced is refused by the chunker
 (``chunks.Chunker``), with the same error.
 """
+
+import drjit as dr
 
 from raymitsuba.options import GIB
 
@@ -22,7 +37,45 @@ from raymitsuba.options import GIB
 # encoder's copy of it and Dr.Jit's allocator cache share.
 BYTES_PER_RAY = 200
 BYTES_PER_RAY_AD = 640
-RAYS_PER_SECOND = 4e6  # the time guard's figure: rays traced per second (2 CPU cores)
+NOMINAL_RAYS_PER_SECOND = 4e6  # the time guard's rate before one is measured
+MEASURED_RAYS = 1 << 12  # rays of the probes timed that make the measurement
+
+# this process's measurement: rays and seconds of the probes timed so far
+_timed = {"rays": 0, "seconds": 0.0}
+
+
+def rays_per_second():
+    """The time guard's rate: rays traced per second on this machine, as measured by the
+    probes of this process (see the module docstring)."""
+    if _timed["rays"] < MEASURED_RAYS or _timed["seconds"] <= 0:
+        return NOMINAL_RAYS_PER_SECOND
+    return _timed["rays"] / _timed["seconds"]
+
+
+def measuring():
+    """Whether the next probe should be timed: the measurement is not made yet and nobody
+    else is reading Dr.Jit's kernel history."""
+    return _timed["rays"] < MEASURED_RAYS and not dr.flag(dr.JitFlag.KernelHistory)
+
+
+def timed(trace):
+    """``trace()``'s result (a trace whose ``rays_per_generation`` are known, so whose
+    kernels have run), its rays and their kernels' execution time counted in the
+    measurement when :func:`measuring`."""
+    if not measuring():
+        return trace()
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        result = trace()
+        history = dr.kernel_history()
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+    # (execution_time: milliseconds; a kernel without one ran nothing worth counting)
+    seconds = sum(float(k.get("execution_time", 0.0)) for k in history) / 1000.0
+    if seconds > 0:
+        _timed["rays"] += sum(result.rays_per_generation)
+        _timed["seconds"] += seconds
+    return result
 
 
 class BudgetError(RuntimeError):
@@ -88,12 +141,13 @@ class Estimate:
                 f"{pixel / GIB:.3g} GB, over the memory budget ({self.memory_budget / GIB:.3g} "
                 "GB): lower --max-depth or --spp, add a --bailout (e.g. 1e-3), or raise "
                 "--memory-budget")
-        seconds = self.rays / RAYS_PER_SECOND
+        rate = rays_per_second()
+        seconds = self.rays / rate
         if self.time_limit > 0 and seconds > self.time_limit:
             raise BudgetError(
                 f"{self.width} x {self.height} at {self.spp} spp, depth {self.max_depth}: about "
-                f"{self.rays:.3g} rays, an estimated {duration(seconds)} "
-                f"(over the {duration(self.time_limit)} limit): lower the size, --spp or "
+                f"{self.rays:.3g} rays, an estimated {duration(seconds)} at {rate / 1e6:.2g} M "
+                f"rays/s (over the {duration(self.time_limit)} limit): lower the size, --spp or "
                 "--max-depth, add a --bailout, or raise --time-limit")
 
 

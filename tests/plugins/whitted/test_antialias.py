@@ -22,25 +22,27 @@ def mi():
     return mitsuba()
 
 
-def test_contrast_mask_marks_both_sides_of_a_step_and_nothing_in_flat_regions():
+def test_contrast_mask_compares_each_pixels_centre_with_its_four_corners():
     from raymitsuba.backend import mitsuba
 
     mitsuba()
     from raymitsuba.plugins.whitted.antialias import contrast_mask
 
-    image = np.zeros((5, 6, 3), np.float32)
-    assert not contrast_mask(image, 0.01).any()
-    image[:, 3:, 1] = 0.5  # a vertical step between columns 2 and 3 (green only)
-    mask = contrast_mask(image, 0.01)
-    assert mask[:, 2:4].all() and not mask[:, :2].any() and not mask[:, 4:].any()
-    assert not contrast_mask(image, 0.5).any()  # not *more* than the threshold
-    spot = np.zeros((5, 6, 3), np.float32)
-    spot[2, 2] = 1.0  # one bright pixel: itself and its 8 neighbours
-    mask = contrast_mask(spot, 0.1)
-    assert mask.sum() == 9 and mask[1:4, 1:4].all()
-    corner = np.zeros((5, 6, 3), np.float32)
-    corner[0, 0] = 1.0  # at the border: no neighbour outside the image counts
-    assert contrast_mask(corner, 0.1).sum() == 4
+    image, corners = np.zeros((5, 6, 3), np.float32), np.zeros((6, 7, 3), np.float32)
+    assert not contrast_mask(image, corners, 0.01).any()
+    corners[:, 3:, 1] = 0.5  # a vertical step through column 2 (its right corners: green)
+    image[:, 3:, 1] = 0.5
+    mask = contrast_mask(image, corners, 0.01)
+    assert mask[:, 2].all() and mask.sum() == 5  # only the column the step crosses
+    assert not contrast_mask(image, corners, 0.5).any()  # not *more* than the threshold
+    dot = np.zeros((6, 7, 3), np.float32)
+    dot[2, 2] = 1.0  # one bright corner: the four pixels that share it
+    mask = contrast_mask(np.zeros((5, 6, 3), np.float32), dot, 0.1)
+    assert mask.sum() == 4 and mask[1:3, 1:3].all()
+    centre = np.zeros((5, 6, 3), np.float32)
+    centre[4, 5] = 1.0  # a bright centre: that pixel alone (its neighbours' samples agree)
+    mask = contrast_mask(centre, np.zeros((6, 7, 3), np.float32), 0.1)
+    assert mask.sum() == 1 and mask[4, 5]
 
 
 def test_banded_comparison_matches_the_whole_image(monkeypatch):
@@ -51,9 +53,10 @@ def test_banded_comparison_matches_the_whole_image(monkeypatch):
 
     rng = np.random.default_rng(3)
     image = (rng.uniform(size=(37, 11, 3)) > 0.9).astype(np.float32)
-    whole = antialias.contrast_mask(image, 0.5)
+    corners = (rng.uniform(size=(38, 12, 3)) > 0.9).astype(np.float32)
+    whole = antialias.contrast_mask(image, corners, 0.5)
     monkeypatch.setattr(antialias, "BAND", 4)
-    assert np.array_equal(antialias.contrast_mask(image, 0.5), whole)
+    assert np.array_equal(antialias.contrast_mask(image, corners, 0.5), whole)
 
 
 def test_a_half_covered_pixel_converges_to_half_and_flat_pixels_stay_at_one_sample(mi):
@@ -73,13 +76,47 @@ def test_a_half_covered_pixel_converges_to_half_and_flat_pixels_stay_at_one_samp
     np.testing.assert_array_equal(image[:, others], plain[:, others])
     np.testing.assert_array_equal(image[:, :centre], 1.0)
     np.testing.assert_array_equal(image[:, centre + 1:], 0.0)
-    # refined: the two columns on either side of the step the first pass saw; again (8x8):
-    # only the edge column, whose 4x4 samples still differ
+    # refined: the edge column alone (its left corners are covered, its right ones not;
+    # the other columns' centre and corners agree), and again (8x8): its 4x4 samples differ
     (first, n1), (second, n2) = loaded.integrator.plan.levels
-    columns = np.unique(first % width).astype(int)
-    assert len(first) == 2 * height and centre in columns and len(columns) == 2
-    assert abs(columns[0] - columns[1]) == 1
-    assert (n1, n2) == (4, 8) and np.array_equal(np.sort(second % width), [centre] * height)
+    assert (n1, n2) == (4, 8) and np.array_equal(np.sort(first % width), [centre] * height)
+    assert np.array_equal(np.sort(second % width), [centre] * height)
+
+
+def strip(width, height, cover):
+    """A white ambient-lit vertical strip (over a black background) centred on the
+    vertical line x = 0, the image's middle corner column at an even ``width``, ``cover``
+    of a pixel wide: pixels are 2 * 5 tan(45 deg / 2) / height wide at z = 0, seen from
+    the default camera (z = 5, a vertical field of view of 45 degrees)."""
+    half = cover * 5 * np.tan(np.radians(22.5)) / height
+    return ("light 1 1 1 ambient\n"
+            "material 1 1 1  1 0 0 1  0 0 1\n"
+            f"triangle {-half} -100 0  {half} -100 0  {half} 100 0\n"
+            f"triangle {-half} -100 0  {half} 100 0  {-half} 100 0\n")
+
+
+def test_a_strip_thinner_than_a_pixel_between_the_centres_is_found_by_the_corners(mi):
+    from support import load_ray, render_ray
+
+    width, height = 16, 9
+    scene = strip(width, height, 0.5)  # half a pixel wide, on the corners of column 8
+    # the pixel centres miss it: the plain image is black
+    assert not render_ray(scene, width, height).any()
+    loaded = load_ray(scene, width, height)
+    loaded.integrator.aa = 0.02
+    image = loaded.integrator.render_array(loaded.scene)
+    # closed form: the strip covers a quarter of each of the two pixels on either side of
+    # the corner column (x in [-1/4, 1/4] pixel); the 4x4 and 8x8 grids' strata split it
+    # exactly (samples at 1/8 and 1/16, 3/16 of a pixel from the line are inside, 3/8 and
+    # 5/16 outside), so their averages are exactly 1/4
+    middle = width // 2
+    np.testing.assert_array_equal(image[:, middle - 1:middle + 1], 0.25)
+    others = np.ones(width, bool)
+    others[middle - 1:middle + 1] = False
+    np.testing.assert_array_equal(image[:, others], 0.0)
+    (first, _), (second, _) = loaded.integrator.plan.levels
+    assert np.array_equal(np.unique(first % width), [middle - 1, middle])
+    assert np.array_equal(np.unique(second % width), [middle - 1, middle])
 
 
 def test_antialiasing_is_deterministic_and_independent_of_the_chunks(mi):
@@ -123,6 +160,7 @@ def test_the_refinement_counts_in_the_time_guard(mi):
     plain.integrator.render_array(plain.scene)
     assert with_refinement > 2 * plain.integrator.estimated_rays
     # a limit between the two: the first pass is allowed, the refinement refused
-    integrator.time_limit = 1.5 * plain.integrator.estimated_rays / guards.RAYS_PER_SECOND
+    integrator.time_limit = 1.5 * plain.integrator.estimated_rays / guards.rays_per_second()
     with pytest.raises(guards.BudgetError, match="--time-limit"):
         integrator.render_array(loaded.scene)
+
