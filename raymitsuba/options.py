@@ -109,8 +109,8 @@ class RenderOptions:
     max_depth: int = option(5, "Bounces after the camera ray.", INTEGRATOR, int, low=0, high=64)
     aa: Optional[float] = option(
         None, "Adaptive anti-aliasing, the way to make an image to look at: pixels whose "
-              "centre and four corners differ by more than THRESHOLD (linear) get 4x4 "
-              "samples, then 8x8 where those differ by more than 5x THRESHOLD.",
+              "centre and four corners differ by more than THRESHOLD (linear), and pixels "
+              "most of whose neighbours do, get 6x6 samples.",
         INTEGRATOR, float, unset="off", low=0, low_open=True, metavar="[THRESHOLD]",
         flag_value=0.02)
     memory_budget: int = option(

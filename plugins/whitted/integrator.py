@@ -154,34 +154,39 @@ class Whitted(mi.CppADIntegrator):
 
         ``rows``: optional (top, bottom): only the image's rows top .. bottom - 1, a band
         of (bottom - top, W, 3), the same values, bit for bit, as those rows of the whole
-        image (a pixel's value does not depend on its chunk, nor, with anti-aliasing, on
-        any sample outside its own square). A band's render keeps no anti-aliasing plan
-        (no adjoint pass follows it)."""
+        image (a pixel's value does not depend on its chunk; with anti-aliasing the first
+        pass also traces the row above and below, whose samples decide the band's edge
+        rows). A band's render keeps no anti-aliasing plan (no adjoint pass follows it)."""
         with dr.suspend_grad():
             sensor, spp, width, height = self._setup(scene, sensor, spp)
             top, bottom = (0, height) if rows is None else rows
             if not 0 <= top < bottom <= height:
                 raise ValueError(f"rows {top} .. {bottom - 1} are not within the image's "
                                  f"{height} rows")
+            # the rows traced by the first pass: the band, with its neighbours' for --aa
+            lo, hi = (max(top - 1, 0), min(bottom + 1, height)) if self.aa > 0 else (top, bottom)
             assemble = store is None or self.aa > 0
-            guards.check_image(width, bottom - top, self.memory_budget, assemble)
+            guards.check_image(width, hi - lo, self.memory_budget, assemble)
             terms = self.tracer.scene_terms(scene)
             estimate = self._estimate(scene, sensor, width, height, spp, terms)
             self.stats = RenderStats(estimate)  # (its estimate is read even if refused)
-            estimate.admit(width * (bottom - top), spp)  # the first pass
+            estimate.admit(width * (hi - lo), spp)  # the first pass
             chunker = Chunker(self.tracer, scene, sensor, self.memory_budget,
                               estimate.rays_per_camera_ray, self.progress, terms,
                               self.chunk_pixels)
-            image = np.empty((width * (bottom - top), 3), np.float32) if assemble else None
-            first_pass(chunker, Job(width, height, spp, top * width, width * (bottom - top)),
+            image = np.empty((width * (hi - lo), 3), np.float32) if assemble else None
+            first_pass(chunker, Job(width, height, spp, lo * width, width * (hi - lo)),
                        assemble_into(image) if assemble else store)
             if self.aa > 0:
-                plan = antialias.refine(image.reshape(bottom - top, width, 3), spp, self.aa,
-                                        chunker, estimate, height, top)
+                plan = antialias.refine(image.reshape(hi - lo, width, 3), spp, self.aa,
+                                        chunker, estimate, height, lo, (top, bottom))
                 self.plan = plan if rows is None else None
             self.stats = RenderStats(estimate, chunker.chunks_done, chunker.rays_traced,
                                      chunker.rays_per_generation)
-            return None if image is None else image.reshape(bottom - top, width, 3)
+            if image is None:
+                return None
+            image = image.reshape(hi - lo, width, 3)
+            return image if (lo, hi) == (top, bottom) else image[top - lo:bottom - lo]
 
     def render_image(self, scene, sensor=0, spp=0):
         """The (H, W, 3) image traced as one wavefront, unchunked and without anti-aliasing

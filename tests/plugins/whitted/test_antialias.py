@@ -22,11 +22,14 @@ def mi():
     return mitsuba()
 
 
-def test_contrast_mask_compares_each_pixels_centre_with_its_four_corners():
+def test_contrast_compares_each_pixels_centre_with_its_four_corners():
     from raymitsuba.backend import mitsuba
 
     mitsuba()
-    from raymitsuba.plugins.whitted.antialias import contrast_mask
+    from raymitsuba.plugins.whitted.antialias import contrast
+
+    def contrast_mask(image, corners, threshold):
+        return contrast(image, corners) > threshold
 
     image, corners = np.zeros((5, 6, 3), np.float32), np.zeros((6, 7, 3), np.float32)
     assert not contrast_mask(image, corners, 0.01).any()
@@ -54,12 +57,13 @@ def test_banded_comparison_matches_the_whole_image(monkeypatch):
     rng = np.random.default_rng(3)
     image = (rng.uniform(size=(37, 11, 3)) > 0.9).astype(np.float32)
     corners = (rng.uniform(size=(38, 12, 3)) > 0.9).astype(np.float32)
-    whole = antialias.contrast_mask(image, corners, 0.5)
+    whole = antialias.contrast(image, corners)
     monkeypatch.setattr(antialias, "BAND", 4)
-    assert np.array_equal(antialias.contrast_mask(image, corners, 0.5), whole)
+    assert np.array_equal(antialias.contrast(image, corners), whole)
 
 
 def test_a_half_covered_pixel_converges_to_half_and_flat_pixels_stay_at_one_sample(mi):
+    from raymitsuba.plugins.whitted import antialias
     from support import load_ray, render_ray
 
     width, height = 15, 9
@@ -68,7 +72,8 @@ def test_a_half_covered_pixel_converges_to_half_and_flat_pixels_stay_at_one_samp
     loaded.integrator.aa = 0.02
     image = loaded.integrator.render_array(loaded.scene)
     centre = width // 2
-    # the edge column: half its area covered, and 4x4 / 8x8 grids split it exactly in two
+    # the edge column: half its area covered, and the finest grid (its samples differ by
+    # 1, the most) is even: it splits it exactly in two
     np.testing.assert_array_equal(image[:, centre], 0.5)
     # every other pixel is fully covered or not: its value is that of its pixel centre
     others = np.ones(width, bool)
@@ -77,10 +82,11 @@ def test_a_half_covered_pixel_converges_to_half_and_flat_pixels_stay_at_one_samp
     np.testing.assert_array_equal(image[:, :centre], 1.0)
     np.testing.assert_array_equal(image[:, centre + 1:], 0.0)
     # refined: the edge column alone (its left corners are covered, its right ones not;
-    # the other columns' centre and corners agree), and again (8x8): its 4x4 samples differ
-    (first, n1), (second, n2) = loaded.integrator.plan.levels
-    assert (n1, n2) == (4, 8) and np.array_equal(np.sort(first % width), [centre] * height)
-    assert np.array_equal(np.sort(second % width), [centre] * height)
+    # the other columns' centre and corners agree, and have 3 refined neighbours at most,
+    # none opposite), with the finest grid
+    (level,) = loaded.integrator.plan.levels
+    assert level.n == antialias.GRIDS[-1][0] and level.n % 2 == 0
+    assert np.array_equal(np.sort(level.pixels % width), [centre] * height)
 
 
 def strip(width, height, cover):
@@ -98,25 +104,63 @@ def strip(width, height, cover):
 def test_a_strip_thinner_than_a_pixel_between_the_centres_is_found_by_the_corners(mi):
     from support import load_ray, render_ray
 
+    from raymitsuba.plugins.whitted import antialias, camera
+
     width, height = 16, 9
-    scene = strip(width, height, 0.5)  # half a pixel wide, on the corners of column 8
-    # the pixel centres miss it: the plain image is black
-    assert not render_ray(scene, width, height).any()
+    # two thirds of a pixel wide, on the corners of column 8: x in [-1/3, 1/3] pixel, which
+    # holds the corners' samples (moved by at most CORNER_JITTER) and not the centres
+    assert camera.CORNER_JITTER < 1 / 3
+    scene = strip(width, height, 2 / 3)
+    assert not render_ray(scene, width, height).any()  # the centres miss it: all black
     loaded = load_ray(scene, width, height)
     loaded.integrator.aa = 0.02
     image = loaded.integrator.render_array(loaded.scene)
-    # closed form: the strip covers a quarter of each of the two pixels on either side of
-    # the corner column (x in [-1/4, 1/4] pixel); the 4x4 and 8x8 grids' strata split it
-    # exactly (samples at 1/8 and 1/16, 3/16 of a pixel from the line are inside, 3/8 and
-    # 5/16 outside), so their averages are exactly 1/4
+    # closed form: the strip covers a third of each of the two pixels on either side of the
+    # corner column; an n x n grid with n a multiple of 6 splits that exactly (of a 6 x 6
+    # grid's columns of samples, at 1/12, 3/12, 5/12 of a pixel from the line, two are
+    # inside), so the average is 1/3 up to float32 rounding (the sum of n^2 samples times
+    # 1 / n^2: a few ulps)
+    (level,) = loaded.integrator.plan.levels
+    assert level.n % 6 == 0 and np.array_equal(np.unique(level.pixels % width),
+                                               [width // 2 - 1, width // 2])
     middle = width // 2
-    np.testing.assert_array_equal(image[:, middle - 1:middle + 1], 0.25)
+    np.testing.assert_allclose(image[:, middle - 1:middle + 1], 1 / 3, rtol=1e-6)
     others = np.ones(width, bool)
     others[middle - 1:middle + 1] = False
     np.testing.assert_array_equal(image[:, others], 0.0)
-    (first, _), (second, _) = loaded.integrator.plan.levels
-    assert np.array_equal(np.unique(first % width), [middle - 1, middle])
-    assert np.array_equal(np.unique(second % width), [middle - 1, middle])
+
+
+def test_a_pixel_most_of_whose_neighbours_are_refined_is_refined():
+    from raymitsuba.backend import mitsuba
+
+    mitsuba()
+    from raymitsuba.plugins.whitted import antialias
+
+    mask = np.zeros((5, 7), bool)
+    mask[:, 3] = True  # an edge's column: its neighbours have 2 or 3 refined neighbours
+    assert not (antialias.busy(mask) & ~mask).any()
+    mask[2, 3] = False  # a gap in it: above and below it are refined
+    assert np.array_equal(np.argwhere(antialias.busy(mask) & ~mask), [[2, 3]])
+    mask = np.ones((5, 7), bool)
+    mask[2, 3] = False  # a hole in a busy region (8 refined neighbours)
+    mask[0, 0] = False  # a corner pixel (3 neighbours, all refined: fewer than BUSY)
+    found = antialias.busy(mask)
+    assert found[2, 3] and not found[0, 0]
+    assert antialias.BUSY > 4  # (more than an edge's staircase gives a pixel beside it)
+
+
+def test_the_grid_follows_the_contrast():
+    from raymitsuba.backend import mitsuba
+
+    mitsuba()
+    from raymitsuba.plugins.whitted.antialias import GRIDS, grid_of
+
+    # just above each entry's contrast (in multiples of the threshold 0.02): that entry
+    spread = np.array([max(times, 1.0) * 0.02 * 1.01 for _, times in GRIDS], np.float32)
+    assert list(grid_of(spread, 0.02)) == list(range(len(GRIDS)))
+    assert grid_of(np.float32([GRIDS[-1][1] * 0.02 * 0.99]), 0.02)[0] == len(GRIDS) - 2
+    sides = [n for n, _ in GRIDS]
+    assert sides == sorted(sides)  # finer with the contrast
 
 
 def test_antialiasing_is_deterministic_and_independent_of_the_chunks(mi):
