@@ -10,23 +10,24 @@
 2. A pixel whose five samples differ by more than the threshold (in some channel, linear
    values) is *refined*: it is traced again with a stratified n x n set of samples (the
    centres of an n x n grid of strata). A detail thinner than a pixel that the centres
-   miss is found where it crosses a corner. So is a pixel at least ``BUSY`` of whose 8
-   neighbours are refined, or two opposite ones: in a region of detail finer than the
-   samples (a checkerboard towards the horizon) some pixels' five samples agree by chance,
-   and a wire thinner than the samples' spacing is found in some pixels along it and
-   missed in others, while a pixel beside a straight edge has 3 or 4 refined neighbours,
-   none opposite. Such a pixel gets the finest grid: it holds detail its samples missed.
+   miss is found where it crosses a corner. So is a pixel between two
+   refined ones (opposite neighbours: above and below, left and right, or across a
+   diagonal): in a region of detail finer than the samples (a checkerboard towards the
+   horizon) some pixels' five samples agree by chance, and a wire thinner than the
+   samples' spacing is found in some pixels along it and missed in others, while no pixel
+   beside a straight edge has two opposite refined neighbours. Such a pixel gets the
+   finest grid: it holds detail its own samples missed.
 3. The grid follows the contrast: the error of an n x n grid on an edge grows with the
    difference across it, so ``GRIDS`` gives each pixel refined for its own samples the
    finest grid whose contrast, in multiples of the threshold, its five samples'
-   difference exceeds. On the benchmark's checkerboard this ladder (2 x 2 to 6 x 6) is as
-   close to a 256-sample render as 6 x 6 everywhere, at two thirds of its samples
-   (README, "Anti-aliasing").
+   difference exceeds. On the benchmark's checkerboard this ladder (2 x 2 to 6 x 6) has
+   as many pixels within 8/255 of a 256-sample render as 6 x 6 for every refined pixel,
+   with two thirds of its samples (README, "Anti-aliasing").
 
 Each pixel's value is the box-filtered average of its samples: those of its grid if it
-is refined, its first pass's otherwise (the corners only decide). The choice of a pixel depends only on its own samples'
-values, so it is the same on every run and however the image is cut into bands of rows; it
-is a detached decision: gradients flow through the values of the samples, never through
+is refined, its first pass's otherwise (the corners only decide). The choice depends only
+on the values of a pixel's samples and its neighbours', so it is the same on every run
+and however the image is cut into bands of rows; it is a detached decision: gradients flow through the values of the samples, never through
 which pixels were refined. :func:`refine` runs the corners and steps 2 and 3 after the
 integrator's first pass and returns the :class:`Plan`, the primal render's decisions;
 the adjoint passes re-trace each pixel with the samples its value came from
@@ -53,7 +54,6 @@ from .chunks import Job
 # multiples of the threshold, its five samples' difference exceeds
 GRIDS = ((2, 0.0), (3, 2.0), (4, 4.0), (6, 12.0))
 BAND = 1024  # rows compared at a time (bounded host memory on huge images)
-BUSY = 5  # a pixel with at least this many refined neighbours (of 8) is refined too
 
 
 def contrast(image, corners):
@@ -81,23 +81,20 @@ def grid_of(spread, threshold):
     return grid
 
 
-def busy(mask):
-    """(H, W) bool: the pixels of which at least ``BUSY`` of the 8 neighbours, or two
-    opposite neighbours (above and below, left and right, or across a diagonal), are in
-    ``mask`` ((H, W) bool; a neighbour outside the image counts as not in it)."""
+def between(mask):
+    """(H, W) bool: the pixels two opposite neighbours of which (above and below, left and
+    right, or across a diagonal) are in ``mask`` ((H, W) bool; a neighbour outside the
+    image counts as not in it)."""
     padded = np.pad(mask, 1)
     height, width = mask.shape
 
     def neighbour(dy, dx):
         return padded[1 + dy:1 + dy + height, 1 + dx:1 + dx + width]
 
-    count = np.zeros(mask.shape, np.uint8)
-    across = np.zeros(mask.shape, bool)
+    found = np.zeros(mask.shape, bool)
     for dy, dx in ((-1, -1), (-1, 0), (-1, 1), (0, -1)):  # one of each opposite pair
-        count += neighbour(dy, dx)
-        count += neighbour(-dy, -dx)
-        across |= neighbour(dy, dx) & neighbour(-dy, -dx)
-    return (count >= BUSY) | across
+        found |= neighbour(dy, dx) & neighbour(-dy, -dx)
+    return found
 
 
 class CornerJob:
@@ -190,7 +187,7 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     spread = contrast(image, corners)
     del corners
     contrasted = spread > threshold
-    around = busy(contrasted) & ~contrasted
+    around = between(contrasted) & ~contrasted
     band = slice(top - first_row, bottom - first_row)
     refined = (contrasted | around)[band]
     # a pixel refined for its neighbours holds detail its own samples missed: the finest grid

@@ -130,23 +130,25 @@ def test_a_strip_thinner_than_a_pixel_between_the_centres_is_found_by_the_corner
     np.testing.assert_array_equal(image[:, others], 0.0)
 
 
-def test_a_pixel_most_of_whose_neighbours_are_refined_is_refined():
+def test_a_pixel_between_two_refined_ones_is_refined():
     from raymitsuba.backend import mitsuba
 
     mitsuba()
     from raymitsuba.plugins.whitted import antialias
 
     mask = np.zeros((5, 7), bool)
-    mask[:, 3] = True  # an edge's column: its neighbours have 2 or 3 refined neighbours
-    assert not (antialias.busy(mask) & ~mask).any()
-    mask[2, 3] = False  # a gap in it: above and below it are refined
-    assert np.array_equal(np.argwhere(antialias.busy(mask) & ~mask), [[2, 3]])
-    mask = np.ones((5, 7), bool)
-    mask[2, 3] = False  # a hole in a busy region (8 refined neighbours)
-    mask[0, 0] = False  # a corner pixel (3 neighbours, all refined: fewer than BUSY)
-    found = antialias.busy(mask)
-    assert found[2, 3] and not found[0, 0]
-    assert antialias.BUSY > 4  # (more than an edge's staircase gives a pixel beside it)
+    mask[:, 3] = True  # an edge's column: no pixel beside it has refined opposite neighbours
+    assert not (antialias.between(mask) & ~mask).any()
+    staircase = np.eye(6, dtype=bool) | np.eye(6, k=1, dtype=bool)  # a diagonal edge
+    assert not (antialias.between(staircase) & ~staircase).any()
+    mask[2, 3] = False  # a gap in a thin line: above and below it are refined
+    assert np.array_equal(np.argwhere(antialias.between(mask) & ~mask), [[2, 3]])
+    dots = np.zeros((5, 7), bool)
+    dots[1, 1] = dots[3, 3] = True  # across a diagonal
+    assert np.array_equal(np.argwhere(antialias.between(dots)), [[2, 2]])
+    corner = np.ones((3, 3), bool)
+    corner[0, 0] = False  # at the border: its opposite neighbours are outside the image
+    assert not antialias.between(corner)[0, 0]
 
 
 def test_the_grid_follows_the_contrast():
