@@ -298,12 +298,17 @@ def aa_section(work, repeats, width=512, height=384, name=SCENES[0], path=None,
     rows = []
     variants = [("1 spp", ("--spp", 1)), ("4 spp", ("--spp", 4)), ("16 spp", ("--spp", 16))]
     variants += [(f"--aa {t}".strip(), ("--aa", t) if t else ("--aa",)) for t in AA_THRESHOLDS]
-    for label, args in variants:
-        out = os.path.join(work, "aa.npy")
-        cmd = render_cmd(path, out, "--width", width, "--height", height, *args)
+    outs = [os.path.join(work, f"aa{i}.npy") for i in range(len(variants))]
+    cmds = [render_cmd(path, out, "--width", width, "--height", height, *args)
+            for out, (_, args) in zip(outs, variants)]
+    for cmd in cmds:
         process(cmd)  # warm the kernel cache
-        runs = [process(cmd) for _ in range(repeats)]
-        rows.append((label, median([r[0] for r in runs]), median([r[1] for r in runs]),
+    runs = [[] for _ in cmds]
+    for _ in range(repeats):  # round-robin: the machine's load changes alike for every variant
+        for cmd, times in zip(cmds, runs):
+            times.append(process(cmd))
+    for (label, _), out, times in zip(variants, outs, runs):
+        rows.append((label, median([r[0] for r in times]), median([r[1] for r in times]),
                      *shares(np.load(out), reference)))
     base_wall, base_cpu = rows[0][1], rows[0][2]
     for label, wall_s, cpu_s, within2, within8 in rows:
