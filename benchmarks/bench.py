@@ -31,8 +31,8 @@ render refuses up front), and with ``--huge`` 16384 x 16384 at 1 spp (minutes).
 
 Anti-aliasing, on the reflective scene and on a generated scene of sub-pixel detail
 (``fine_detail_scene``: a Siemens star and thin wires) at 512 x 384 against a 256-spp
-(16 x 16 grid) render: the share of pixels whose largest channel difference (values clamped to [0, 1])
-is within 2/255 and 8/255, and the process time relative to a 1-spp render, for uniform
+(16 x 16 grid) render: the share of pixels whose largest channel difference (values
+clamped to [0, 1]) is within 2/255 and 8/255, and the process time relative to a 1-spp render, for uniform
 1, 4 and 16 spp and ``--aa``; POV-Ray's ``+A0.3`` (adaptive, its default depth 3) and its
 uniform 4 spp likewise against its own 16 x 16 supersampled render.
 

@@ -27,8 +27,8 @@
 Each pixel's value is the box-filtered average of its samples: those of its grid if it
 is refined, its first pass's otherwise (the corners only decide). The choice depends only
 on the values of a pixel's samples and its neighbours', so it is the same on every run
-and however the image is cut into bands of rows; it is a detached decision: gradients flow through the values of the samples, never through
-which pixels were refined. :func:`refine` runs the corners and steps 2 and 3 after the
+and however the image is cut into bands of rows; it is a detached decision: gradients
+flow through the values of the samples, never through which pixels were refined. :func:`refine` runs the corners and steps 2 and 3 after the
 integrator's first pass and returns the :class:`Plan`, the primal render's decisions;
 the adjoint passes re-trace each pixel with the samples its value came from
 (:meth:`Plan.adjoint_jobs`).

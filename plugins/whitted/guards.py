@@ -8,23 +8,21 @@ A refused request raises :class:`BudgetError`, one line saying why and what woul
   estimated time is beyond the time limit (:class:`Estimate`): the rays are estimated
   from the probe's rays per camera ray (``chunks.probe``), job by job as the render's jobs
   become known (the first pass, then each anti-aliasing job), and their time at the rays
-  per second of this machine (:func:`rays_per_second`).
+  per second of this scene on this machine (measured: see below).
 
-**Rays per second** are measured, not assumed: the probe's trace (about 10^3 camera rays,
-traced before every render anyway) is timed by the execution time of its kernels in
-Dr.Jit's kernel history, so compilation, cache loads and Python are left out (on the CPU
-and on a GPU alike), and a kernel held up by other work is counted at a bound
-(:func:`robust_seconds`). The first probes of a process that trace at least ``MEASURED_RAYS``
-rays in all make the measurement, kept for the rest of the process: every later render
-of the process is judged at the same rate, and a request is refused or not the same way on
-every run unless its estimate is within the machine's noise (a factor well under 2) of the
-limit. The probe's kernels are small, so the rate measured is a lower bound of what large
-chunks reach: the estimate errs on the long side. Until a measurement is made (or while
-another user of the kernel history, such as a test counting kernels, has it on: its
-records are not taken from it) the rate is ``NOMINAL_RAYS_PER_SECOND``.
-
-A single pixel whose tree exceeds the budget once traced is refused by the chunker
-(``chunks.Chunker``), with the same error.
+**Rays per second** are measured, not assumed, for each scene: the probe's trace (about
+10^3 camera rays, traced before every render anyway) is timed by the execution time of its
+kernels in Dr.Jit's kernel history, so compilation, cache loads and Python are left out (on
+the CPU and on a GPU alike), and a kernel held up by other work counts at a bound
+(:func:`robust_seconds`). The rate is the scene's (a scene whose rays all miss traces them
+far faster than one of mirrors and glass), measured by the first render of a loaded scene
+and kept by its integrator for its later renders, so they are all judged alike; a request
+is refused or not the same way on every run unless its estimate is within the machine's
+noise (a factor well under 2) of the limit. The probe's kernels are small, so the rate
+measured is a lower bound of what large chunks reach: the estimate errs on the long side.
+Where nothing was measured (a probe of fewer than ``MEASURED_RAYS`` rays or too large to
+trace, or another user of the kernel history, such as a test counting kernels, has it on:
+its records are not taken from it) the rate is ``NOMINAL_RAYS_PER_SECOND``.
 """
 
 import drjit as dr
@@ -38,34 +36,16 @@ from raymitsuba.options import GIB
 # encoder's copy of it and Dr.Jit's allocator cache share.
 BYTES_PER_RAY = 200
 BYTES_PER_RAY_AD = 640
-NOMINAL_RAYS_PER_SECOND = 4e6  # the time guard's rate before one is measured
+NOMINAL_RAYS_PER_SECOND = 4e6  # the time guard's rate where none was measured
 CLIP = 2.0  # a kernel counts at most this many times the probe's third longest (robust_seconds)
-MEASURED_RAYS = 1000  # rays of the probes timed that make the measurement (one probe: 1024 camera rays)
-
-# this process's measurement: rays and seconds of the probes timed so far
-_timed = {"rays": 0, "seconds": 0.0}
-
-
-def rays_per_second():
-    """The time guard's rate: rays traced per second on this machine, as measured by the
-    probes of this process (see the module docstring)."""
-    if _timed["rays"] < MEASURED_RAYS or _timed["seconds"] <= 0:
-        return NOMINAL_RAYS_PER_SECOND
-    return _timed["rays"] / _timed["seconds"]
-
-
-def measuring():
-    """Whether the next probe should be timed: the measurement is not made yet and nobody
-    else is reading Dr.Jit's kernel history."""
-    return _timed["rays"] < MEASURED_RAYS and not dr.flag(dr.JitFlag.KernelHistory)
-
+MEASURED_RAYS = 1000  # a probe of fewer rays measures nothing (one probe: <= 1024 pixels)
 
 def timed(trace):
-    """``trace()``'s result (a trace whose ``rays_per_generation`` are known, so whose
-    kernels have run), its rays and their kernels' execution time counted in the
-    measurement when :func:`measuring`."""
-    if not measuring():
-        return trace()
+    """(``trace()``'s result, the rays per second of its kernels or None: not measured).
+    ``trace()`` returns a trace whose ``rays_per_generation`` are known (so whose kernels
+    have run); see the module docstring."""
+    if dr.flag(dr.JitFlag.KernelHistory):  # someone else's records: left alone
+        return trace(), None
     dr.set_flag(dr.JitFlag.KernelHistory, True)
     try:
         result = trace()
@@ -73,10 +53,8 @@ def timed(trace):
     finally:
         dr.set_flag(dr.JitFlag.KernelHistory, False)
     seconds = robust_seconds([float(k.get("execution_time", 0.0)) for k in history])
-    if seconds > 0:
-        _timed["rays"] += sum(result.rays_per_generation)
-        _timed["seconds"] += seconds
-    return result
+    rays = sum(result.rays_per_generation)
+    return result, (rays / seconds if rays >= MEASURED_RAYS and seconds > 0 else None)
 
 
 def robust_seconds(milliseconds):
@@ -133,10 +111,11 @@ class Estimate:
 
     ``rays_per_camera_ray``: the probe's estimate; ``max_depth``: the tree's depth (the
     messages name it); ``memory_budget``: bytes one chunk's tree may take; ``time_limit``:
-    seconds (0: none)."""
+    seconds (0: none); ``rays_per_second``: the scene's measured rate (None: the nominal
+    one)."""
 
     def __init__(self, rays_per_camera_ray, width, height, spp, max_depth, memory_budget,
-                 time_limit):
+                 time_limit, rays_per_second=None):
         self.rays_per_camera_ray = rays_per_camera_ray  # the probe's estimate
         self.width, self.height = width, height  # the image
         self.spp = spp  # the render's samples per pixel
@@ -144,6 +123,8 @@ class Estimate:
         self.memory_budget = memory_budget  # bytes one chunk's tree may take
         self.time_limit = time_limit  # seconds of estimated time refused past (0: none)
         self.rays = 0.0  # the estimate: the rays of the jobs admitted so far
+        # the time guard's rate: rays traced per second
+        self.rays_per_second = rays_per_second or NOMINAL_RAYS_PER_SECOND
 
     def admit(self, pixels, samples):
         """Count a job of ``pixels`` pixels at ``samples`` samples each in the estimate, then
@@ -157,7 +138,7 @@ class Estimate:
                 f"{pixel / GIB:.3g} GB, over the memory budget ({self.memory_budget / GIB:.3g} "
                 "GB): lower --max-depth or --spp, add a --bailout (e.g. 1e-3), or raise "
                 "--memory-budget")
-        rate = rays_per_second()
+        rate = self.rays_per_second
         seconds = self.rays / rate
         if self.time_limit > 0 and seconds > self.time_limit:
             raise BudgetError(

@@ -72,6 +72,9 @@ class Whitted(mi.CppADIntegrator):
         # seconds of estimated render time past which a render is refused (0: no limit)
         self.time_limit = options.time_limit
         self.chunk_pixels = options.chunk_pixels or None  # at most this many pixels a chunk
+        # this scene's rays per second, measured by the first render's probe and kept for
+        # the later ones (guards.py; None: not measured yet)
+        self.rays_per_second = None
         self.progress = None  # optional callable(pixels_done, pixels_total, chunks_done)
         self.stats = RenderStats()  # of the last render (also of a refused one: its estimate)
         # The anti-aliasing decisions of the last primal render (antialias.Plan; None: none
@@ -209,9 +212,11 @@ class Whitted(mi.CppADIntegrator):
     def _estimate(self, scene, sensor, width, height, spp, terms):
         """The guards' estimate of a render, from the probe's rays per camera ray (no job
         admitted yet)."""
-        return guards.Estimate(probe(self.tracer, scene, sensor, width, height, spp, terms),
-                               width, height, spp, max_depth=self.max_depth,
-                               memory_budget=self.memory_budget, time_limit=self.time_limit)
+        rays, rate = probe(self.tracer, scene, sensor, width, height, spp, terms)
+        self.rays_per_second = self.rays_per_second or rate
+        return guards.Estimate(rays, width, height, spp, max_depth=self.max_depth,
+                               memory_budget=self.memory_budget, time_limit=self.time_limit,
+                               rays_per_second=self.rays_per_second)
 
     def _adjoint_chunker(self, scene, sensor):
         return Chunker(self.tracer, scene, sensor, self.memory_budget,

@@ -206,7 +206,9 @@ def test_the_refinement_counts_in_the_time_guard(mi):
     plain.integrator.render_array(plain.scene)
     assert with_refinement > 2 * plain.integrator.estimated_rays
     # a limit between the two: the first pass is allowed, the refinement refused
-    integrator.time_limit = 1.5 * plain.integrator.estimated_rays / guards.rays_per_second()
+    # (at the scene's rate, measured by its first render and kept for the next)
+    rate = integrator.stats.estimate.rays_per_second
+    integrator.time_limit = 1.5 * plain.integrator.estimated_rays / rate
     with pytest.raises(guards.BudgetError, match="--time-limit"):
         integrator.render_array(loaded.scene)
 
