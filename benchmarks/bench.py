@@ -29,9 +29,10 @@ Memory (``raymitsuba render`` processes, peak resident memory as the kernel acco
 (with ``--bailout 1e-4``: the exact tree at depth 64 grows ~1.2x a generation, which the
 render refuses up front), and with ``--huge`` 16384 x 16384 at 1 spp (minutes).
 
-Anti-aliasing, on the reflective scene at 512 x 384 against a 256-spp (16 x 16 grid)
-render: the share of pixels whose largest channel difference (values clamped to [0, 1])
-is within 2/255 and 8/255, and the process time relative to a 1-spp render, for uniform
+Anti-aliasing, on the reflective scene and on a generated scene of sub-pixel detail
+(``fine_detail_scene``: a Siemens star and thin wires) at 512 x 384 against a 256-spp
+(16 x 16 grid) render: the share of pixels whose largest channel difference (values
+clamped to [0, 1]) is within 2/255 and 8/255, and the process time relative to a 1-spp render, for uniform
 1, 4 and 16 spp and ``--aa``; POV-Ray's ``+A0.3`` (adaptive, its default depth 3) and its
 uniform 4 spp likewise against its own 16 x 16 supersampled render.
 
@@ -255,34 +256,66 @@ def shares(image, reference):
     return 100 * float(np.mean(d <= 2 / 255 + 1e-6)), 100 * float(np.mean(d <= 8 / 255 + 1e-6))
 
 
-AA_THRESHOLDS = (0.05, 0.02)
+AA_THRESHOLDS = ("", 0.05, 0.01)  # "": --aa alone, the default threshold
 
 
-def aa_section(work, repeats, width=512, height=384):
+def fine_detail_scene(width=512, height=384, spokes=48, wires=12):
+    """.RAY text of a scene of detail finer than a pixel at ``width`` x ``height``, seen from
+    the default camera (z = 5, vertical field of view 45 degrees): a Siemens star of
+    ``spokes`` spokes, whose tips converge below a pixel, and ``wires`` slanted wires from
+    0.2 to 1.5 pixels wide; ambient light only, so each surface is one flat colour over a
+    black background."""
+    import math
+
+    pixel = 2 * 5 * math.tan(math.radians(22.5)) / height  # world units at z = 0
+    lines = ["light 1 1 1 ambient", "background 0 0 0", "material 1 0.9 0.6  1 0 0 1  0 0 1"]
+    cx, cy, r = -1.0, 0.0, 1.5
+    for k in range(spokes):
+        a0, a1 = 2 * math.pi * k / spokes, 2 * math.pi * (k + 0.5) / spokes
+        lines.append(f"triangle {cx} {cy} 0  {cx + r * math.cos(a0)} {cy + r * math.sin(a0)} 0"
+                     f"  {cx + r * math.cos(a1)} {cy + r * math.sin(a1)} 0")
+    lines.append("material 0.5 0.8 1  1 0 0 1  0 0 1")
+    for k in range(wires):
+        w = (0.2 + 1.3 * k / (wires - 1)) * pixel / 2  # half the width
+        x0, x1 = 0.9 + 0.18 * k, 1.5 + 0.18 * k  # bottom and top of the wire's axis
+        lines += [f"triangle {x0 - w} -1.9 0  {x0 + w} -1.9 0  {x1 + w} 1.9 0",
+                  f"triangle {x0 - w} -1.9 0  {x1 + w} 1.9 0  {x1 - w} 1.9 0"]
+    return "\n".join(lines) + "\n"
+
+
+def aa_section(work, repeats, width=512, height=384, name=SCENES[0], path=None,
+               povray_too=True):
     import numpy as np
 
     from raymitsuba import images
 
-    path = scene_path(SCENES[0])
-    print(f"\nanti-aliasing on {SCENES[0]} at {width}x{height}, against a 256-spp render "
+    path = path or scene_path(name)
+    print(f"\nanti-aliasing on {name} at {width}x{height}, against a 256-spp render "
           f"(pixels within 2/255 and 8/255; process time, median of {repeats}, relative to 1 spp):")
     ref = os.path.join(work, "ref.npy")
     process(render_cmd(path, ref, "--width", width, "--height", height, "--spp", 256))
     reference = np.load(ref)
     rows = []
     variants = [("1 spp", ("--spp", 1)), ("4 spp", ("--spp", 4)), ("16 spp", ("--spp", 16))]
-    variants += [(f"--aa {t}", ("--aa", t)) for t in AA_THRESHOLDS]
-    for label, args in variants:
-        out = os.path.join(work, "aa.npy")
-        cmd = render_cmd(path, out, "--width", width, "--height", height, *args)
+    variants += [(f"--aa {t}".strip(), ("--aa", t) if t else ("--aa",)) for t in AA_THRESHOLDS]
+    outs = [os.path.join(work, f"aa{i}.npy") for i in range(len(variants))]
+    cmds = [render_cmd(path, out, "--width", width, "--height", height, *args)
+            for out, (_, args) in zip(outs, variants)]
+    for cmd in cmds:
         process(cmd)  # warm the kernel cache
-        runs = [process(cmd) for _ in range(repeats)]
-        rows.append((label, median([r[0] for r in runs]), median([r[1] for r in runs]),
+    runs = [[] for _ in cmds]
+    for _ in range(repeats):  # round-robin: the machine's load changes alike for every variant
+        for cmd, times in zip(cmds, runs):
+            times.append(process(cmd))
+    for (label, _), out, times in zip(variants, outs, runs):
+        rows.append((label, median([r[0] for r in times]), median([r[1] for r in times]),
                      *shares(np.load(out), reference)))
     base_wall, base_cpu = rows[0][1], rows[0][2]
     for label, wall_s, cpu_s, within2, within8 in rows:
         print(f"  raymitsuba {label:12} {within2:6.2f} % {within8:6.2f} %   time x{wall_s / base_wall:5.2f}"
               f" (cpu x{cpu_s / base_cpu:5.2f}; {wall_s:.2f} s)")
+    if not povray_too:
+        return
     if not shutil.which("povray"):
         print("  POV-Ray: not installed")
         return
@@ -385,6 +418,10 @@ def main():
         memory_section(work, args.huge)
     if "aa" in only:
         aa_section(work, repeats)
+        fine = os.path.join(work, "fine_detail.ray")
+        with open(fine, "w") as f:
+            f.write(fine_detail_scene())
+        aa_section(work, repeats, name="fine_detail (generated)", path=fine, povray_too=False)
     if "deep" in only:
         deep_section(work, repeats)
     if "batch" in only:

@@ -45,7 +45,9 @@ class Spec:
     ``low_open``; ``reader``: IMAGE, SCENE or INTEGRATOR; ``unset``: what the option
     does when it is None (its default); ``cli``: whether the command line offers it
     (some are for tests and tools only); ``metavar``: the command line's name for its
-    value; ``size``: a number of bytes, written ``2G`` or ``512M`` on the command line."""
+    value; ``size``: a number of bytes, written ``2G`` or ``512M`` on the command line;
+    ``flag_value``: the value of the option given without one (the command line's flag
+    alone, or True from Python; None: a value is required)."""
 
     help: str
     reader: str
@@ -57,11 +59,15 @@ class Spec:
     cli: bool = True
     metavar: Optional[str] = None
     size: bool = False
+    flag_value: Any = None
+
 
     def check(self, name: str, value: Any) -> Any:
         """``value`` as the option's type, or an OptionError naming the option."""
         if value is None:
             return None
+        if value is True and self.flag_value is not None:
+            return self.flag_value
         if self.kind is bool:
             return bool(value)
         try:
@@ -102,10 +108,12 @@ class RenderOptions:
         IMAGE, int, low=1, high=4096)
     max_depth: int = option(5, "Bounces after the camera ray.", INTEGRATOR, int, low=0, high=64)
     aa: Optional[float] = option(
-        None, "Adaptive anti-aliasing: pixels that differ from a neighbour by more than "
-              "THRESHOLD (linear, e.g. 0.02) get 4x4 samples, then 8x8 where those differ by "
-              "more than 5x THRESHOLD.",
-        INTEGRATOR, float, unset="off", low=0, low_open=True, metavar="THRESHOLD")
+        None, "Adaptive anti-aliasing, the way to make an image to look at: pixels whose "
+              "centre and four corners differ by more than THRESHOLD (linear), and pixels "
+              "between two such pixels, are traced again with a 2x2 to 6x6 grid by the "
+              "contrast.",
+        INTEGRATOR, float, unset="off", low=0, low_open=True, metavar="[THRESHOLD]",
+        flag_value=0.02)
     memory_budget: int = option(
         2 * GIB, "Memory a chunk of camera rays may take (e.g. 512M, 4G).",
         INTEGRATOR, int, low=0, low_open=True, metavar="SIZE", size=True)
@@ -169,7 +177,9 @@ def describe(reader: str) -> str:
             value = default(name)
             shown = (spec.unset if value is None else
                      f"{value / GIB:g} GiB" if spec.size else repr(value))
-            lines.append(f"* ``{name}`` ({spec.kind.__name__}, default {shown}): {spec.help}")
+            alone = "" if spec.flag_value is None else f"; True: {spec.flag_value!r}"
+            lines.append(f"* ``{name}`` ({spec.kind.__name__}, default {shown}{alone}): "
+                         f"{spec.help}")
     return "\n" + "\n".join(lines) + "\n"
 
 

@@ -8,12 +8,20 @@ Conventions, decided here once:
 * One sample per pixel goes through the pixel centre; ``spp = n^2`` samples use the
   centres of an n x n grid of strata; other counts are stratified in x with a
   golden-ratio sequence in y.
+* Pixel *corners* (adaptive anti-aliasing's first pass, ``antialias.py``) are the
+  (W + 1) x (H + 1) points at whole pixel coordinates, numbered row-major from the image's
+  top-left corner: corner (x, y) is shared by the pixels (x - 1 .. x, y - 1 .. y). Each is
+  moved by a fixed offset of at most ``CORNER_JITTER`` of a pixel in x and in y, a hash of
+  its number (the same on every run): a regular lattice of samples half a pixel apart
+  aliases a periodic pattern (a checkerboard towards the horizon) into flat moire, where
+  every sample agrees and no pixel is refined.
 """
 
 import drjit as dr
 import mitsuba as mi
 
 GOLDEN = 0.6180339887498949
+CORNER_JITTER = 0.2  # pixels: how far a corner's sample may be from the corner, in x and y
 
 
 def stratum_offset(s, spp):
@@ -55,6 +63,31 @@ def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None):
     return mi.Ray3f(ray)
 
 
+def corner_rays(sensor, width, height, first, count):
+    """One camera ray through each of the pixel corners ``first`` .. ``first + count - 1``
+    (numbered as in the module docstring) of a ``width`` x ``height`` image."""
+    corner = dr.arange(mi.UInt32, count) + dr.opaque(mi.UInt32, first)
+    row = corner // (width + 1)
+    jitter = corner_jitter(corner)
+    film_pos = mi.Point2f((mi.Float(corner - row * (width + 1)) + jitter.x) / width,
+                          (mi.Float(row) + jitter.y) / height)
+    ray, _ = sensor.sample_ray(time=0.0, sample1=0.5, sample2=film_pos, sample3=mi.Point2f(0.5))
+    return mi.Ray3f(ray)
+
+
+def corner_jitter(corner):
+    """The offset (pixels, each coordinate within +-CORNER_JITTER) of the sample of pixel
+    corner number ``corner`` (UInt32): two 16-bit halves of an integer hash of it."""
+    h = corner * 0x9E3779B1
+    h ^= h >> 15
+    h *= 0x85EBCA77
+    h ^= h >> 13
+    h *= 0xC2B2AE3D
+    h ^= h >> 16
+    unit = mi.Point2f(mi.Float(h & 0xFFFF), mi.Float(h >> 16)) * (1.0 / 65536.0)
+    return (unit * 2.0 - 1.0) * CORNER_JITTER
+
+
 def pixel_sums(color, count, spp):
     """Per pixel, the sum of its ``spp`` consecutive lanes of ``color`` (``count`` pixels)."""
     pixel = dr.arange(mi.UInt32, count) * spp
@@ -70,16 +103,6 @@ def pixel_means(color, count, spp):
     if spp > 1:
         total *= 1.0 / spp
     return total
-
-
-def pixel_spread(color, count, spp):
-    """Per pixel, the largest difference between two of its samples in one channel."""
-    pixel = dr.arange(mi.UInt32, count) * spp
-    low = high = dr.gather(mi.Color3f, color, pixel)
-    for s in range(1, spp):
-        c = dr.gather(mi.Color3f, color, pixel + s)
-        low, high = dr.minimum(low, c), dr.maximum(high, c)
-    return dr.max(high - low)
 
 
 def box_filter(color, width, height, spp):

@@ -20,7 +20,8 @@ the split, like the image, is the same on every run.
 **Time.** Before a render, :func:`probe` traces a spread-out sample of the image's
 pixels (at most ``PROBE_PIXELS``, tree at most ``PROBE_RAYS`` rays, extrapolated
 from its growth past that) to estimate the rays per camera ray: the chunk size to
-start with, and the guards' estimate of the whole render (``guards.Estimate``).
+start with, and the guards' estimate of the whole render (``guards.Estimate``); its trace
+is also what measures the scene's rays per second for the guards (``guards.timed``).
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import mitsuba as mi
 import numpy as np
 
 from .camera import camera_rays
-from .guards import BYTES_PER_RAY, BYTES_PER_RAY_AD, GIB, BudgetError
+from .guards import BYTES_PER_RAY, BYTES_PER_RAY_AD, GIB, BudgetError, timed
 from .tree import TreeTooLarge
 
 MIN_CHUNK_RAYS = 1 << 12
@@ -152,8 +153,9 @@ class Chunker:
 
 
 def probe(tracer, scene, sensor, width, height, spp, terms):
-    """Estimated rays per camera ray of the whole image, from a spread-out sample of its
-    pixels (see the module docstring)."""
+    """(Estimated rays per camera ray of the whole image, from a spread-out sample of its
+    pixels (see the module docstring); the rays per second of that sample's trace, or None:
+    not measured, ``guards.timed``)."""
     total = width * height
     stride = max(total // PROBE_PIXELS, 1)
     pixels = np.arange(0, total, stride, dtype=np.uint32)[:PROBE_PIXELS]
@@ -162,10 +164,11 @@ def probe(tracer, scene, sensor, width, height, spp, terms):
     camera = len(pixels) * samples
     try:
         with dr.suspend_grad():
-            trace = tracer.trace(scene, job.rays(sensor, 0, job.count), terms, PROBE_RAYS)
-        return sum(trace.rays_per_generation) / camera
+            trace, rate = timed(lambda: tracer.trace(scene, job.rays(sensor, 0, job.count),
+                                                     terms, PROBE_RAYS))
+        return sum(trace.rays_per_generation) / camera, rate
     except TreeTooLarge as e:
-        return extrapolated_rays(e, tracer.max_depth) / camera
+        return extrapolated_rays(e, tracer.max_depth) / camera, None
 
 
 def extrapolated_rays(e, max_depth):

@@ -72,6 +72,9 @@ class Whitted(mi.CppADIntegrator):
         # seconds of estimated render time past which a render is refused (0: no limit)
         self.time_limit = options.time_limit
         self.chunk_pixels = options.chunk_pixels or None  # at most this many pixels a chunk
+        # this scene's rays per second, measured by the first render's probe and kept for
+        # the later ones (guards.py; None: not measured yet)
+        self.rays_per_second = None
         self.progress = None  # optional callable(pixels_done, pixels_total, chunks_done)
         self.stats = RenderStats()  # of the last render (also of a refused one: its estimate)
         # The anti-aliasing decisions of the last primal render (antialias.Plan; None: none
@@ -169,7 +172,7 @@ class Whitted(mi.CppADIntegrator):
         ``rows``: optional (top, bottom): only the image's rows top .. bottom - 1, a band
         of (bottom - top, W, 3), the same values, bit for bit, as those rows of the whole
         image (a pixel's value does not depend on its chunk; with anti-aliasing the first
-        pass also traces the row above and below, whose contrast decides the band's edge
+        pass also traces the row above and below, whose samples decide the band's edge
         rows). A band's render keeps no anti-aliasing plan (no adjoint pass follows it)."""
         with dr.suspend_grad():
             sensor, spp, width, height = self._setup(scene, sensor, spp)
@@ -180,7 +183,7 @@ class Whitted(mi.CppADIntegrator):
             # the rows traced by the first pass: the band, with its neighbours' for --aa
             lo, hi = (max(top - 1, 0), min(bottom + 1, height)) if self.aa > 0 else (top, bottom)
             assemble = store is None or self.aa > 0
-            guards.check_image(width, hi - lo, self.memory_budget, assemble)
+            guards.check_image(width, hi - lo, self.memory_budget, assemble, self.aa > 0)
             terms = self.tracer.scene_terms(scene)
             estimate = self._estimate(scene, sensor, width, height, spp, terms)
             self.stats = RenderStats(estimate)  # (its estimate is read even if refused)
@@ -223,9 +226,11 @@ class Whitted(mi.CppADIntegrator):
     def _estimate(self, scene, sensor, width, height, spp, terms):
         """The guards' estimate of a render, from the probe's rays per camera ray (no job
         admitted yet)."""
-        return guards.Estimate(probe(self.tracer, scene, sensor, width, height, spp, terms),
-                               width, height, spp, max_depth=self.max_depth,
-                               memory_budget=self.memory_budget, time_limit=self.time_limit)
+        rays, rate = probe(self.tracer, scene, sensor, width, height, spp, terms)
+        self.rays_per_second = self.rays_per_second or rate
+        return guards.Estimate(rays, width, height, spp, max_depth=self.max_depth,
+                               memory_budget=self.memory_budget, time_limit=self.time_limit,
+                               rays_per_second=self.rays_per_second)
 
     def _boundary(self, scene, sensor, spp, width, height):
         """(issue 13) The boundary terms of an adjoint pass (boundary.Boundary), or None where

@@ -65,6 +65,35 @@ def _click_type(spec: options.Spec):
     return click.FloatRange(spec.low, spec.high, **low_open)
 
 
+class OptionalValue(click.Option):
+    """An option whose value may be left out (``--aa`` alone: the record's flag value). A
+    next argument that is not a number is not taken as its value but left to the command
+    (``--aa scene.ray`` is ``--aa`` and the scene)."""
+
+    def add_to_parser(self, parser, ctx):
+        super().add_to_parser(parser, ctx)
+        alone = repr(self.flag_value)
+        for opt in self.opts:  # (the parser's option objects are click's, not public API)
+            parsed = parser._long_opt.get(opt) or parser._short_opt.get(opt)
+            process = parsed.process
+
+            def given(value, state, process=process):
+                if isinstance(value, str) and not _is_number(value):
+                    state.rargs.insert(0, value)
+                    value = alone
+                process(value, state)
+
+            parsed.process = given
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def render_option(name: str, help: Optional[str] = None) -> Callable:
     """The click option of the render option ``name`` (see the module docstring); ``help``
     replaces the record's text where a command gives the option more to do."""
@@ -73,6 +102,11 @@ def render_option(name: str, help: Optional[str] = None) -> Callable:
     text = help or spec.help
     if spec.kind is bool:
         return click.option(flag, name, is_flag=True, default=value, help=text)
+    if spec.flag_value is not None:  # the flag alone: its flag value
+        return click.option(flag, name, cls=OptionalValue, type=_click_type(spec),
+                            default=None, is_flag=False, flag_value=spec.flag_value,
+                            metavar=spec.metavar, show_default=spec.unset,
+                            help=f"{text} [{flag} alone: {spec.flag_value}]")
     if value is None:  # shown as what it means
         return click.option(flag, name, type=_click_type(spec), default=None,
                             metavar=spec.metavar, show_default=spec.unset, help=text)

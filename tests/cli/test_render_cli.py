@@ -105,6 +105,20 @@ def test_antialiasing_and_a_small_budget_from_the_command_line(tmp_path):
     assert np.array_equal(images.read(str(png)), images.encode_8bit(plain) / np.float32(255.0))
 
 
+def test_aa_alone_takes_the_records_threshold_wherever_it_stands():
+    from raymitsuba import options
+
+    alone = options.spec("aa").flag_value
+    assert alone > 0 and options.RenderOptions(aa=True).aa == alone  # (True from Python)
+    for args in ([SCENE, "--aa", "-o", "x.png"], ["--aa", SCENE, "-o", "x.png"],
+                 [SCENE, "-o", "x.png", "--aa"]):
+        params = render_cli.render.make_context("render", list(args)).params
+        assert params["aa"] == alone and params["scenes"] == (SCENE,), args
+    for args, value in ((["--aa", "0.05"], 0.05), (["--aa=0.1"], 0.1), ([], None)):
+        params = render_cli.render.make_context("render", [SCENE, "-o", "x.png", *args]).params
+        assert params["aa"] == value
+
+
 def test_a_bad_memory_budget_is_a_usage_error(tmp_path):
     result = raymitsuba("render", SCENE, "-o", tmp_path / "x.png", "--memory-budget", "lots")
     assert result.returncode == 2 and "--memory-budget" not in result.stdout

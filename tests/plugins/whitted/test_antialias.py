@@ -22,25 +22,30 @@ def mi():
     return mitsuba()
 
 
-def test_contrast_mask_marks_both_sides_of_a_step_and_nothing_in_flat_regions():
+def test_contrast_compares_each_pixels_centre_with_its_four_corners():
     from raymitsuba.backend import mitsuba
 
     mitsuba()
-    from raymitsuba.plugins.whitted.antialias import contrast_mask
+    from raymitsuba.plugins.whitted.antialias import contrast
 
-    image = np.zeros((5, 6, 3), np.float32)
-    assert not contrast_mask(image, 0.01).any()
-    image[:, 3:, 1] = 0.5  # a vertical step between columns 2 and 3 (green only)
-    mask = contrast_mask(image, 0.01)
-    assert mask[:, 2:4].all() and not mask[:, :2].any() and not mask[:, 4:].any()
-    assert not contrast_mask(image, 0.5).any()  # not *more* than the threshold
-    spot = np.zeros((5, 6, 3), np.float32)
-    spot[2, 2] = 1.0  # one bright pixel: itself and its 8 neighbours
-    mask = contrast_mask(spot, 0.1)
-    assert mask.sum() == 9 and mask[1:4, 1:4].all()
-    corner = np.zeros((5, 6, 3), np.float32)
-    corner[0, 0] = 1.0  # at the border: no neighbour outside the image counts
-    assert contrast_mask(corner, 0.1).sum() == 4
+    def contrast_mask(image, corners, threshold):
+        return contrast(image, corners) > threshold
+
+    image, corners = np.zeros((5, 6, 3), np.float32), np.zeros((6, 7, 3), np.float32)
+    assert not contrast_mask(image, corners, 0.01).any()
+    corners[:, 3:, 1] = 0.5  # a vertical step through column 2 (its right corners: green)
+    image[:, 3:, 1] = 0.5
+    mask = contrast_mask(image, corners, 0.01)
+    assert mask[:, 2].all() and mask.sum() == 5  # only the column the step crosses
+    assert not contrast_mask(image, corners, 0.5).any()  # not *more* than the threshold
+    dot = np.zeros((6, 7, 3), np.float32)
+    dot[2, 2] = 1.0  # one bright corner: the four pixels that share it
+    mask = contrast_mask(np.zeros((5, 6, 3), np.float32), dot, 0.1)
+    assert mask.sum() == 4 and mask[1:3, 1:3].all()
+    centre = np.zeros((5, 6, 3), np.float32)
+    centre[4, 5] = 1.0  # a bright centre: that pixel alone (its neighbours' samples agree)
+    mask = contrast_mask(centre, np.zeros((6, 7, 3), np.float32), 0.1)
+    assert mask.sum() == 1 and mask[4, 5]
 
 
 def test_banded_comparison_matches_the_whole_image(monkeypatch):
@@ -51,12 +56,14 @@ def test_banded_comparison_matches_the_whole_image(monkeypatch):
 
     rng = np.random.default_rng(3)
     image = (rng.uniform(size=(37, 11, 3)) > 0.9).astype(np.float32)
-    whole = antialias.contrast_mask(image, 0.5)
+    corners = (rng.uniform(size=(38, 12, 3)) > 0.9).astype(np.float32)
+    whole = antialias.contrast(image, corners)
     monkeypatch.setattr(antialias, "BAND", 4)
-    assert np.array_equal(antialias.contrast_mask(image, 0.5), whole)
+    assert np.array_equal(antialias.contrast(image, corners), whole)
 
 
 def test_a_half_covered_pixel_converges_to_half_and_flat_pixels_stay_at_one_sample(mi):
+    from raymitsuba.plugins.whitted import antialias
     from support import load_ray, render_ray
 
     width, height = 15, 9
@@ -65,7 +72,8 @@ def test_a_half_covered_pixel_converges_to_half_and_flat_pixels_stay_at_one_samp
     loaded.integrator.aa = 0.02
     image = loaded.integrator.render_array(loaded.scene)
     centre = width // 2
-    # the edge column: half its area covered, and 4x4 / 8x8 grids split it exactly in two
+    # the edge column: half its area covered, and the finest grid (its samples differ by
+    # 1, the most) is even: it splits it exactly in two
     np.testing.assert_array_equal(image[:, centre], 0.5)
     # every other pixel is fully covered or not: its value is that of its pixel centre
     others = np.ones(width, bool)
@@ -73,13 +81,88 @@ def test_a_half_covered_pixel_converges_to_half_and_flat_pixels_stay_at_one_samp
     np.testing.assert_array_equal(image[:, others], plain[:, others])
     np.testing.assert_array_equal(image[:, :centre], 1.0)
     np.testing.assert_array_equal(image[:, centre + 1:], 0.0)
-    # refined: the two columns on either side of the step the first pass saw; again (8x8):
-    # only the edge column, whose 4x4 samples still differ
-    (first, n1), (second, n2) = loaded.integrator.plan.levels
-    columns = np.unique(first % width).astype(int)
-    assert len(first) == 2 * height and centre in columns and len(columns) == 2
-    assert abs(columns[0] - columns[1]) == 1
-    assert (n1, n2) == (4, 8) and np.array_equal(np.sort(second % width), [centre] * height)
+    # refined: the edge column alone (its left corners are covered, its right ones not;
+    # the other columns' centre and corners agree, and have 3 refined neighbours at most,
+    # none opposite), with the finest grid
+    (level,) = loaded.integrator.plan.levels
+    assert level.n == antialias.GRIDS[-1][0] and level.n % 2 == 0
+    assert np.array_equal(np.sort(level.pixels % width), [centre] * height)
+
+
+def strip(width, height, cover):
+    """A white ambient-lit vertical strip (over a black background) centred on the
+    vertical line x = 0, the image's middle corner column at an even ``width``, ``cover``
+    of a pixel wide: pixels are 2 * 5 tan(45 deg / 2) / height wide at z = 0, seen from
+    the default camera (z = 5, a vertical field of view of 45 degrees)."""
+    half = cover * 5 * np.tan(np.radians(22.5)) / height
+    return ("light 1 1 1 ambient\n"
+            "material 1 1 1  1 0 0 1  0 0 1\n"
+            f"triangle {-half} -100 0  {half} -100 0  {half} 100 0\n"
+            f"triangle {-half} -100 0  {half} 100 0  {-half} 100 0\n")
+
+
+def test_a_strip_thinner_than_a_pixel_between_the_centres_is_found_by_the_corners(mi):
+    from support import load_ray, render_ray
+
+    from raymitsuba.plugins.whitted import antialias, camera
+
+    width, height = 16, 9
+    # two thirds of a pixel wide, on the corners of column 8: x in [-1/3, 1/3] pixel, which
+    # holds the corners' samples (moved by at most CORNER_JITTER) and not the centres
+    assert camera.CORNER_JITTER < 1 / 3
+    scene = strip(width, height, 2 / 3)
+    assert not render_ray(scene, width, height).any()  # the centres miss it: all black
+    loaded = load_ray(scene, width, height)
+    loaded.integrator.aa = 0.02
+    image = loaded.integrator.render_array(loaded.scene)
+    # closed form: the strip covers a third of each of the two pixels on either side of the
+    # corner column; an n x n grid with n a multiple of 6 splits that exactly (of a 6 x 6
+    # grid's columns of samples, at 1/12, 3/12, 5/12 of a pixel from the line, two are
+    # inside), so the average is 1/3 up to float32 rounding (the sum of n^2 samples times
+    # 1 / n^2: a few ulps)
+    (level,) = loaded.integrator.plan.levels
+    assert level.n % 6 == 0 and np.array_equal(np.unique(level.pixels % width),
+                                               [width // 2 - 1, width // 2])
+    middle = width // 2
+    np.testing.assert_allclose(image[:, middle - 1:middle + 1], 1 / 3, rtol=1e-6)
+    others = np.ones(width, bool)
+    others[middle - 1:middle + 1] = False
+    np.testing.assert_array_equal(image[:, others], 0.0)
+
+
+def test_a_pixel_between_two_refined_ones_is_refined():
+    from raymitsuba.backend import mitsuba
+
+    mitsuba()
+    from raymitsuba.plugins.whitted import antialias
+
+    mask = np.zeros((5, 7), bool)
+    mask[:, 3] = True  # an edge's column: no pixel beside it has refined opposite neighbours
+    assert not (antialias.between(mask) & ~mask).any()
+    staircase = np.eye(6, dtype=bool) | np.eye(6, k=1, dtype=bool)  # a diagonal edge
+    assert not (antialias.between(staircase) & ~staircase).any()
+    mask[2, 3] = False  # a gap in a thin line: above and below it are refined
+    assert np.array_equal(np.argwhere(antialias.between(mask) & ~mask), [[2, 3]])
+    dots = np.zeros((5, 7), bool)
+    dots[1, 1] = dots[3, 3] = True  # across a diagonal
+    assert np.array_equal(np.argwhere(antialias.between(dots)), [[2, 2]])
+    corner = np.ones((3, 3), bool)
+    corner[0, 0] = False  # at the border: its opposite neighbours are outside the image
+    assert not antialias.between(corner)[0, 0]
+
+
+def test_the_grid_follows_the_contrast():
+    from raymitsuba.backend import mitsuba
+
+    mitsuba()
+    from raymitsuba.plugins.whitted.antialias import GRIDS, grid_of
+
+    # just above each entry's contrast (in multiples of the threshold 0.02): that entry
+    spread = np.array([max(times, 1.0) * 0.02 * 1.01 for _, times in GRIDS], np.float32)
+    assert list(grid_of(spread, 0.02)) == list(range(len(GRIDS)))
+    assert grid_of(np.float32([GRIDS[-1][1] * 0.02 * 0.99]), 0.02)[0] == len(GRIDS) - 2
+    sides = [n for n, _ in GRIDS]
+    assert sides == sorted(sides)  # finer with the contrast
 
 
 def test_antialiasing_is_deterministic_and_independent_of_the_chunks(mi):
@@ -123,6 +206,9 @@ def test_the_refinement_counts_in_the_time_guard(mi):
     plain.integrator.render_array(plain.scene)
     assert with_refinement > 2 * plain.integrator.estimated_rays
     # a limit between the two: the first pass is allowed, the refinement refused
-    integrator.time_limit = 1.5 * plain.integrator.estimated_rays / guards.RAYS_PER_SECOND
+    # (at the scene's rate, measured by its first render and kept for the next)
+    rate = integrator.stats.estimate.rays_per_second
+    integrator.time_limit = 1.5 * plain.integrator.estimated_rays / rate
     with pytest.raises(guards.BudgetError, match="--time-limit"):
         integrator.render_array(loaded.scene)
+
