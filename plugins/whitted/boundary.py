@@ -72,6 +72,7 @@ import numpy as np
 
 from raymitsuba.options import GIB
 
+from .arrays import jit_array
 from .guards import BudgetError
 from .hits import MESH, SMOOTH, SPHERE
 from .tree import reflect, refract
@@ -349,8 +350,8 @@ class Boundary:
     def film_rays(self, y, x):
         """The camera rays of lattice points (y, x) (numpy), the camera keys attached."""
         k = self.k
-        pos = mi.Point2f(mi.Float(((x + 0.5) / (k * self.width)).astype(np.float32)),
-                         mi.Float(((y + 0.5) / (k * self.height)).astype(np.float32)))
+        pos = mi.Point2f(jit_array(mi.Float, ((x + 0.5) / (k * self.width)).astype(np.float32)),
+                         jit_array(mi.Float, ((y + 0.5) / (k * self.height)).astype(np.float32)))
         ray, _ = self.sensor.sample_ray(time=0.0, sample1=0.5, sample2=pos,
                                         sample3=mi.Point2f(0.5))
         ray = mi.Ray3f(ray)
@@ -395,9 +396,10 @@ class Boundary:
         normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
         df = self.jump(L, R, axis, w, kind)
         scale = np.where(valid, normal2 / (self.k ** 2 * np.where(valid, along, 1.0)), 0.0)
-        g_star = (1.0 - mi.Float(w.astype(np.float32))) * g_l + mi.Float(w.astype(np.float32)) * g_r
-        rate = -(g_star - dr.detach(g_star)) * mi.Float(scale.astype(np.float32))
-        surrogate = mi.Color3f(*(mi.Float(np.ascontiguousarray(df[:, c])) for c in range(3))) * rate
+        w32 = jit_array(mi.Float, w.astype(np.float32))
+        g_star = (1.0 - w32) * g_l + w32 * g_r
+        rate = -(g_star - dr.detach(g_star)) * jit_array(mi.Float, scale.astype(np.float32))
+        surrogate = mi.Color3f(*(jit_array(mi.Float, df[:, c]) for c in range(3))) * rate
         return surrogate, self.spread(L, axis, w, np.abs(across) / np.maximum(np.abs(along), 1e-30))
 
     def jump(self, L, R, axis, w, kind):
@@ -467,7 +469,7 @@ class Boundary:
                 edge = self.crossed_edge(table, shadows, blocker[:, 0], blocker[:, 1])
                 for i, shadow in enumerate(shadows):
                     gs = self.inside(table, shadow, blocker[:, 0], blocker[:, 1], edge)
-                    choice[i] = dr.select(mi.Bool(mask), gs, choice[i])
+                    choice[i] = dr.select(jit_array(mi.Bool, mask), gs, choice[i])
         # checker lines
         if (kind == CHECKER).any():
             choice = self.checker_crossing(terms, his, self.cell[L], self.cell[R],
@@ -493,7 +495,7 @@ class Boundary:
         gf_l, gf_r = gf[0].numpy(), gf[1].numpy()
         use_n = np.sign(gn_l) != np.sign(gn_r)
         use_f = ~use_n & (f_shape < STOP) & (np.sign(gf_l) != np.sign(gf_r))
-        return [dr.select(mi.Bool(use_n), a, dr.select(mi.Bool(use_f), b, c))
+        return [dr.select(jit_array(mi.Bool, use_n), a, dr.select(jit_array(mi.Bool, use_f), b, c))
                 for a, b, c in zip(gn, gf, crease)]
 
     def chain_crossing(self, table, terms, rays, his, L, R, kind, depth, g):
@@ -506,7 +508,7 @@ class Boundary:
                 ray, _, _ = self.chain_step(terms, si, ray)
                 dr.eval(ray)
                 si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
-                at = mi.Bool(depth == d)
+                at = jit_array(mi.Bool, depth == d)
                 final_ray = mi.Ray3f(dr.select(at, ray.o, final_ray.o),
                                      dr.select(at, ray.d, final_ray.d))
                 final_si = _merge(at, si, final_si)
@@ -515,7 +517,7 @@ class Boundary:
         left = tuple(a[d, L[0], L[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
         right = tuple(a[d, R[0], R[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
         vis = self.visibility(table, [r for r, _ in finals], left, right)
-        mask = mi.Bool(kind == CHAIN_VISIBILITY)
+        mask = jit_array(mi.Bool, kind == CHAIN_VISIBILITY)
         g = [dr.select(mask, a, b) for a, b in zip(vis, g)]
         if (kind == CHAIN_CHECKER).any():
             cl, cr = self.chain_cell[d, L[0], L[1]], self.chain_cell[d, R[0], R[1]]
@@ -532,19 +534,19 @@ class Boundary:
         slot = terms.surfaces.slot(his[0].shape, his[0].is_valid())
         size = dr.gather(mi.Float, terms.surfaces.layout.checker_size, slot)
         size = dr.select(size > 0, size, 1.0)
-        mask = mi.Bool(which)
+        mask = jit_array(mi.Bool, which)
         out = list(g)
         for i, si in enumerate(his):
-            u = dr.select(mi.Bool(coord == 0), si.uv.x, si.uv.y)
-            out[i] = dr.select(mask, u / size - mi.Float(line), out[i])
+            u = dr.select(jit_array(mi.Bool, coord == 0), si.uv.x, si.uv.y)
+            out[i] = dr.select(mask, u / size - jit_array(mi.Float, line), out[i])
         return out
 
     def inside(self, table, ray, shape, prim, edge=None):
         """The inside function of primitive (shape, prim) for each ray (numpy ids): > 0 where
         the ray's line meets it (see the module docstring). For a triangle, ``edge`` (numpy,
         per lane: 0, 1, 2, or -1 for the least of the three) picks the edge function."""
-        ids = mi.UInt32(np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-        valid = mi.Bool(shape != NO_HIT) & (ids < table.size)
+        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
         kind = dr.gather(mi.UInt32, table.kind, ids, valid)
         row = dr.gather(mi.UInt32, table.first, ids, valid)
         out = mi.Float(-1.0)
@@ -559,15 +561,15 @@ class Boundary:
             e = self.edge_functions(table, ray, d, row, prim, mesh)
             g = dr.minimum(dr.minimum(e[0], e[1]), e[2])
             if edge is not None:
-                which = mi.UInt32(np.maximum(edge, 0).astype(np.uint32))
+                which = jit_array(mi.UInt32, np.maximum(edge, 0).astype(np.uint32))
                 chosen = dr.select(which == 0, e[0], dr.select(which == 1, e[1], e[2]))
-                g = dr.select(mi.Bool(edge >= 0), chosen, g)
+                g = dr.select(jit_array(mi.Bool, edge >= 0), chosen, g)
             out = dr.select(mesh, g, out)
         return out
 
     def edge_functions(self, table, ray, d, row, prim, mesh):
         """The three normalized edge functions of each lane's face, signed to be > 0 inside."""
-        _, (p0, p1, p2) = table.corners(row, mi.UInt32(prim.astype(np.uint32)), mesh)
+        _, (p0, p1, p2) = table.corners(row, jit_array(mi.UInt32, prim.astype(np.uint32)), mesh)
         side = dr.dot(dr.detach(dr.cross(p1 - p0, p2 - p0)), dr.detach(d))
         sigma = dr.select(side <= 0, 1.0, -1.0)
         return [sigma * dr.dot(dr.cross(a - ray.o, b - ray.o), d) / dr.norm(b - a)
@@ -576,8 +578,8 @@ class Boundary:
     def crossed_edge(self, table, rays, shape, prim):
         """Per pair (numpy): the edge of the face (shape, prim) whose function changes sign
         between the rays of L and R (-1: none, or not a face)."""
-        ids = mi.UInt32(np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-        valid = mi.Bool(shape != NO_HIT) & (ids < table.size)
+        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
         if not table.has_meshes:
             return np.full(len(shape), -1)
         kind = dr.gather(mi.UInt32, table.kind, ids, valid)
@@ -594,8 +596,8 @@ class Boundary:
 
     def depth(self, table, ray, shape, prim):
         """The distance along each ray to the primitive (shape, prim)'s plane or sphere."""
-        ids = mi.UInt32(np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-        valid = mi.Bool(shape != NO_HIT) & (ids < table.size)
+        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
         kind = dr.gather(mi.UInt32, table.kind, ids, valid)
         row = dr.gather(mi.UInt32, table.first, ids, valid)
         out = mi.Float(0.0)
@@ -609,7 +611,7 @@ class Boundary:
             out = dr.select(sphere, (-b - root) / a, out)
         if table.has_meshes:
             mesh = valid & ((kind & MESH) != 0)
-            _, (p0, p1, p2) = table.corners(row, mi.UInt32(prim.astype(np.uint32)), mesh)
+            _, (p0, p1, p2) = table.corners(row, jit_array(mi.UInt32, prim.astype(np.uint32)), mesh)
             n = dr.cross(p1 - p0, p2 - p0)
             out = dr.select(mesh, dr.dot(n, p0 - ray.o) / dr.dot(n, ray.d), out)
         return out
@@ -625,7 +627,7 @@ class Boundary:
                 surrogate, (pixel, fraction) = self.surrogates(pairs, lo, hi)
                 weight = np.einsum("nj,njc->nc", fraction, grad_in[pixel]).astype(np.float32)
                 dr.backward_from(surrogate * mi.Color3f(
-                    *(mi.Float(np.ascontiguousarray(weight[:, c])) for c in range(3))),
+                    *(jit_array(mi.Float, weight[:, c]) for c in range(3))),
                     flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
 
     def forward(self, grads, last):
