@@ -275,7 +275,50 @@ class Boundary:
         found = []
         rows, cols = self.t.shape
         for axis in (1, 0):  # rows (X, X + 1), then columns (Y, Y + 1)
-            ly, lx = np.nonzero(np.ones((rows - (axis == 0), cols - (axis == 1)), bool))
+            # every pair at once, as two views of the lattice: L (the first sample of each
+            # pair) and R (the second)
+            left = np.s_[:, :-1] if axis == 1 else np.s_[:-1, :]
+            right = np.s_[:, 1:] if axis == 1 else np.s_[1:, :]
+            visibility = self.surface_differs(left, right, kind_of)
+            kind = np.full(visibility.shape, -1, np.int64)
+            light = np.zeros(visibility.shape, np.int64)
+            kind[visibility] = VISIBILITY
+            same = ~visibility & (self.shape[left] != NO_HIT)
+            # On one surface, a pair across one edge only: where a shadow edge and a checker
+            # line (or two shadow edges) pass between the same two samples, the jump f_L - f_R
+            # is the sum of both and belongs to neither alone (such pairs are left out: a
+            # share of the crossings that falls as 1/k).
+            edges = np.zeros(visibility.shape, np.int64)
+            for j in range(len(self.lights)):
+                edge = same & (self.lit[j][left] != self.lit[j][right])
+                edges += edge
+                kind[edge], light[edge] = SHADOW, j
+            lines = np.sum(self.cell[left] != self.cell[right], -1)  # u and v lines crossed
+            checker = same & (lines > 0)
+            edges += lines * checker
+            kind[checker] = CHECKER
+            kind[same & (edges > 1)] = -1
+            # Seen along the specular chain (mirrors, glass): the first bounce whose key
+            # differs, if the first hits are alike; a pair whose chains differ in total
+            # internal reflection, or across two edges at that bounce, is left out.
+            depth = np.full(visibility.shape, -1, np.int64)
+            pending = same & (edges == 0)
+            for d in range(CHAIN_DEPTH):
+                if not pending.any():
+                    break
+                cs_l, cs_r = self.chain_shape[d][left], self.chain_shape[d][right]
+                tir = self.chain_tir[d][left] != self.chain_tir[d][right]
+                shape_differs = cs_l != cs_r
+                lines = np.sum(self.chain_cell[d][left] != self.chain_cell[d][right], -1)
+                here = pending & (shape_differs | (lines > 0) | tir)
+                ok = here & ~tir & ((shape_differs & (lines >= 0)) | (lines == 1))
+                ok &= (cs_l != STOP) & (cs_r != STOP)
+                kind[ok & shape_differs] = CHAIN_VISIBILITY
+                kind[ok & ~shape_differs] = CHAIN_CHECKER
+                depth[ok] = d
+                pending &= ~here
+            keep = kind >= 0
+            ly, lx = np.nonzero(keep)  # (row-major: the order of the lattice)
             ry, rx = ly + (axis == 0), lx + (axis == 1)
             # the neighbours of L and R across the axis, either side (one side at the border):
             # they give the edge's normal at the crossing (centred differences)
@@ -285,48 +328,10 @@ class Boundary:
             else:
                 beside = [(y, np.minimum(x + 1, cols - 1)) for y, x in ((ly, lx), (ry, rx))] \
                     + [(y, np.maximum(x - 1, 0)) for y, x in ((ly, lx), (ry, rx))]
-            visibility = self.surface_differs(ly, lx, ry, rx, kind_of)
-            kind = np.full(len(ly), -1, np.int64)
-            light = np.zeros(len(ly), np.int64)
-            kind[visibility] = VISIBILITY
-            same = ~visibility & (self.shape[ly, lx] != NO_HIT)
-            # On one surface, a pair across one edge only: where a shadow edge and a checker
-            # line (or two shadow edges) pass between the same two samples, the jump f_L - f_R
-            # is the sum of both and belongs to neither alone (such pairs are left out: a
-            # share of the crossings that falls as 1/k).
-            edges = np.zeros(len(ly), np.int64)
-            for j in range(len(self.lights)):
-                edge = same & (self.lit[j][ly, lx] != self.lit[j][ry, rx])
-                edges += edge
-                kind[edge], light[edge] = SHADOW, j
-            lines = np.sum(self.cell[ly, lx] != self.cell[ry, rx], -1)  # u and v lines crossed
-            checker = same & (lines > 0)
-            edges += lines * checker
-            kind[checker] = CHECKER
-            kind[same & (edges > 1)] = -1
-            # Seen along the specular chain (mirrors, glass): the first bounce whose key
-            # differs, if the first hits are alike; a pair whose chains differ in total
-            # internal reflection, or across two edges at that bounce, is left out.
-            depth = np.full(len(ly), -1, np.int64)
-            pending = same & (edges == 0)
-            for d in range(CHAIN_DEPTH):
-                cs_l, cs_r = self.chain_shape[d][ly, lx], self.chain_shape[d][ry, rx]
-                tir = self.chain_tir[d][ly, lx] != self.chain_tir[d][ry, rx]
-                shape_differs = cs_l != cs_r
-                lines = np.sum(self.chain_cell[d][ly, lx] != self.chain_cell[d][ry, rx], -1)
-                here = pending & (shape_differs | (lines > 0) | tir)
-                ok = here & ~tir & ((shape_differs & (lines >= 0)) | (lines == 1))
-                ok &= (cs_l != STOP) & (cs_r != STOP)
-                kind[ok & shape_differs] = CHAIN_VISIBILITY
-                kind[ok & ~shape_differs] = CHAIN_CHECKER
-                depth[ok] = d
-                pending &= ~here
-            keep = kind >= 0
             points = dict(L=(ly, lx), R=(ry, rx), LA=beside[0], RA=beside[1], LB=beside[2],
                           RB=beside[3])
-            found.append(dict(axis=np.full(keep.sum(), axis), kind=kind[keep], light=light[keep],
-                              depth=depth[keep],
-                              **{name: (y[keep], x[keep]) for name, (y, x) in points.items()}))
+            found.append(dict(axis=np.full(len(ly), axis), kind=kind[keep], light=light[keep],
+                              depth=depth[keep], **points))
         return {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))
                        if name in POINTS else np.concatenate([f[name] for f in found]))
                 for name in found[0]}
@@ -335,15 +340,18 @@ class Boundary:
         """The HitTable kind bits by shape registry id."""
         return self.terms.geometry.kind.numpy()
 
-    def surface_differs(self, ly, lx, ry, rx, kind_of):
-        """Whether two samples see different surfaces: another shape (or one a miss), or
-        another face of a flat mesh that is not coplanar with the first."""
-        sl, sr = self.shape[ly, lx], self.shape[ry, rx]
+    def surface_differs(self, left, right, kind_of):
+        """Whether two samples see different surfaces (the lattice's views ``left`` and
+        ``right``, numpy index expressions): another shape (or one a miss), or another face
+        of a flat mesh that is not coplanar with the first."""
+        sl, sr = self.shape[left], self.shape[right]
         differs = sl != sr
-        faces = ~differs & (sl != NO_HIT) & (self.prim[ly, lx] != self.prim[ry, rx])
+        faces = ~differs & (sl != NO_HIT) & (self.prim[left] != self.prim[right])
+        if not faces.any():
+            return differs
         kind = kind_of[np.where(sl == NO_HIT, 0, np.minimum(sl, len(kind_of) - 1))]
         flat = (kind & MESH != 0) & (kind & SMOOTH == 0)
-        bent = np.linalg.norm(self.normal[ly, lx] - self.normal[ry, rx], axis=-1) > COPLANAR
+        bent = np.linalg.norm(self.normal[left] - self.normal[right], axis=-1) > COPLANAR
         return differs | (faces & flat & bent)
 
     # -- the surrogates --------------------------------------------------------------------------
