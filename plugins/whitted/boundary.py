@@ -206,7 +206,9 @@ class Boundary:
         for _ in range(CHAIN_DEPTH):
             ray_k, go, tir = self.chain_step(terms, si_k, ray_k)
             alive = alive & go
-            dr.eval(ray_k, go, tir)
+            dr.eval(ray_k, go, tir, alive)
+            if not dr.any(alive):  # (the chain's keys past its end: as the lattice starts)
+                break
             si_k = _evaluated(self.tracer.intersect(scene, table, ray_k, coherent=False))
             found = alive & si_k.is_valid()
             chain["chain_shape"].append(dr.select(
