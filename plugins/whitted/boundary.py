@@ -276,6 +276,7 @@ class Boundary:
         kind_of = self.surface_kinds()
         found = []
         rows, cols = self.t.shape
+        ended = [bool(np.all(shape == STOP)) for shape in self.chain_shape]
         for axis in (1, 0):  # rows (X, X + 1), then columns (Y, Y + 1)
             # every pair at once, as two views of the lattice: L (the first sample of each
             # pair) and R (the second)
@@ -306,7 +307,7 @@ class Boundary:
             depth = np.full(visibility.shape, -1, np.int64)
             pending = same & (edges == 0)
             for d in range(CHAIN_DEPTH):
-                if not pending.any():
+                if not pending.any() or ended[d]:  # (past every chain's end: no pair)
                     break
                 cs_l, cs_r = self.chain_shape[d][left], self.chain_shape[d][right]
                 tir = self.chain_tir[d][left] != self.chain_tir[d][right]
