@@ -177,19 +177,49 @@ class Boundary:
     def collect(self, job, start, count, color):
         """Record the keys and colors of a chunk's samples (``color``: one lane per camera
         ray of the job's pixels start .. start + count - 1)."""
-        y, x = self.lattice_points(job, start, count)
+        if job.pixels is None:  # a range of pixels: written by rows of the lattice
+            first = job.first + start
+
+            def put(target, values):
+                self.put_range(target, first, values)
+        else:
+            y, x = self.lattice_points(job, start, count)
+
+            def put(target, values):
+                target[y, x] = values
         with dr.suspend_grad():
             rays = job.rays(self.sensor, start, count)
             keys = self.keys(rays)
         color = dr.detach(color)
-        self.color[y, x] = np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1)
+        put(self.color, np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1))
         for name, values in keys.items():
             target = getattr(self, name)
             if name in ("lit", "occluder") or name.startswith("chain_"):
                 for j, v in enumerate(values):
-                    target[j][y, x] = v
+                    put(target[j], v)
             else:
-                target[y, x] = values
+                put(target, values)
+
+    def put_range(self, target, first, values):
+        """Write ``values`` (one per lane of the pixels first, first + 1, ...: spp lanes each,
+        sample s at (s // k, s % k) of its pixel) into the lattice array ``target`` ((H k, W k,
+        ...)): the pixels of one image row at a time, or whole rows, as blocks."""
+        k, width = self.k, self.width
+        tail = target.shape[2:]
+        view = target.reshape((self.height, k, width, k) + tail)  # [row, sy, column, sx]
+        per_pixel = values.reshape((-1, k, k) + tail)  # [pixel, sy, sx]
+        done, total = 0, len(per_pixel)
+        while done < total:
+            row, column = divmod(first + done, width)
+            if column == 0 and total - done >= width:  # whole rows
+                rows = (total - done) // width
+                block = per_pixel[done:done + rows * width].reshape((rows, width, k, k) + tail)
+                view[row:row + rows] = block.swapaxes(1, 2)
+                done += rows * width
+            else:  # the pixels of one row
+                span = min(width - column, total - done)
+                view[row, :, column:column + span] = per_pixel[done:done + span].swapaxes(0, 1)
+                done += span
 
     def keys(self, rays):
         """The keys of the samples of ``rays`` (detached), as numpy arrays."""
