@@ -109,6 +109,12 @@ def wanted(tracer, scene):
     return False
 
 
+def crossed(cell_l, cell_r):
+    """How many checker lines (u and v) lie between two samples' cells (int8)."""
+    return (cell_l[..., 0] != cell_r[..., 0]).view(np.int8) \
+        + (cell_l[..., 1] != cell_r[..., 1]).view(np.int8)
+
+
 def lattice_side(spp):
     """k for ``spp`` = k^2 samples per pixel (None: not a square lattice)."""
     k = int(round(spp ** 0.5))
@@ -313,20 +319,20 @@ class Boundary:
             left = np.s_[:, :-1] if axis == 1 else np.s_[:-1, :]
             right = np.s_[:, 1:] if axis == 1 else np.s_[1:, :]
             visibility = self.surface_differs(left, right, kind_of)
-            kind = np.full(visibility.shape, -1, np.int64)
-            light = np.zeros(visibility.shape, np.int64)
+            kind = np.full(visibility.shape, -1, np.int8)  # (small types: a pass per array)
+            light = np.zeros(visibility.shape, np.int32)
             kind[visibility] = VISIBILITY
             same = ~visibility & (self.shape[left] != NO_HIT)
             # On one surface, a pair across one edge only: where a shadow edge and a checker
             # line (or two shadow edges) pass between the same two samples, the jump f_L - f_R
             # is the sum of both and belongs to neither alone (such pairs are left out: a
             # share of the crossings that falls as 1/k).
-            edges = np.zeros(visibility.shape, np.int64)
+            edges = np.zeros(visibility.shape, np.int16)
             for j in range(len(self.lights)):
                 edge = same & (self.lit[j][left] != self.lit[j][right])
                 edges += edge
                 kind[edge], light[edge] = SHADOW, j
-            lines = np.sum(self.cell[left] != self.cell[right], -1)  # u and v lines crossed
+            lines = crossed(self.cell[left], self.cell[right])  # u and v lines crossed
             checker = same & (lines > 0)
             edges += lines * checker
             kind[checker] = CHECKER
@@ -334,7 +340,7 @@ class Boundary:
             # Seen along the specular chain (mirrors, glass): the first bounce whose key
             # differs, if the first hits are alike; a pair whose chains differ in total
             # internal reflection, or across two edges at that bounce, is left out.
-            depth = np.full(visibility.shape, -1, np.int64)
+            depth = np.full(visibility.shape, -1, np.int8)
             pending = same & (edges == 0)
             for d in range(CHAIN_DEPTH):
                 if not pending.any() or ended[d]:  # (past every chain's end: no pair)
@@ -342,7 +348,7 @@ class Boundary:
                 cs_l, cs_r = self.chain_shape[d][left], self.chain_shape[d][right]
                 tir = self.chain_tir[d][left] != self.chain_tir[d][right]
                 shape_differs = cs_l != cs_r
-                lines = np.sum(self.chain_cell[d][left] != self.chain_cell[d][right], -1)
+                lines = crossed(self.chain_cell[d][left], self.chain_cell[d][right])
                 here = pending & (shape_differs | (lines > 0) | tir)
                 ok = here & ~tir & ((shape_differs & (lines >= 0)) | (lines == 1))
                 ok &= (cs_l != STOP) & (cs_r != STOP)
@@ -363,8 +369,9 @@ class Boundary:
                     + [(y, np.maximum(x - 1, 0)) for y, x in ((ly, lx), (ry, rx))]
             points = dict(L=(ly, lx), R=(ry, rx), LA=beside[0], RA=beside[1], LB=beside[2],
                           RB=beside[3])
-            found.append(dict(axis=np.full(len(ly), axis), kind=kind[keep], light=light[keep],
-                              depth=depth[keep], **points))
+            found.append(dict(axis=np.full(len(ly), axis), kind=kind[keep].astype(np.int64),
+                              light=light[keep].astype(np.int64),
+                              depth=depth[keep].astype(np.int64), **points))
         return {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))
                        if name in POINTS else np.concatenate([f[name] for f in found]))
                 for name in found[0]}
