@@ -12,9 +12,10 @@ sum's error (fixed random weights) relative to the reference's weighted sum, and
 the sum of the terms' sizes (sum |w ref|: a derivative of both signs may nearly cancel in the
 sum itself), and the per-pixel relative L2 error ||AD - ref|| / ||ref||.
 
-**Cost.** At 256 x 192, k = 4 (spp 16): the primal render, and a gradient step (render +
-backward of an L2 loss) with respect to geometry keys (a translate and the eye): medians of
-3, in this process, and their ratio.
+**Cost.** At 256 x 192 (``--cost-size``), k = 4 (spp 16): the primal render, and a gradient
+step as a fit takes it (new values, ``params.update()``, render + backward of an L2 loss)
+with respect to geometry keys (a translate and the eye), on one loaded scene: medians of 5,
+in this process, after two steps that compile the kernels, and their ratio.
 """
 
 from __future__ import annotations
@@ -114,36 +115,63 @@ def accuracy(mi, width, height):
                   f"{relative_l2(grad, reference):.2%} |", flush=True)
 
 
-def cost(mi, width, height, repeats=3):
+def cost(mi, width, height, repeats=5):
+    """The primal render and a gradient step as a fit takes it, on one loaded scene: new
+    values of the keys (a move of 1e-3 either way), ``params.update()`` (the geometry moved,
+    the Jacobians computed again), render and backward. Medians of ``repeats``, after two
+    steps that compile the kernels."""
     import drjit as dr
     import raymitsuba
 
+    from raymitsuba.plugins.whitted import boundary
+
+    keys = ("translate2.offset", "camera.eye")
+    plain = raymitsuba.load(SCENE, width=width, height=height, spp=16)
+
     def primal():
-        scene = raymitsuba.load(SCENE, width=width, height=height, spp=16)
         started = time.perf_counter()
-        raymitsuba.render(scene).numpy()
+        raymitsuba.render(plain).numpy()
         return time.perf_counter() - started
 
-    target = mi.TensorXf(raymitsuba.render(raymitsuba.load(SCENE, width=width, height=height,
-                                                           spp=16)).numpy())
+    target = mi.TensorXf(raymitsuba.render(plain).numpy())
+    scene = raymitsuba.load(SCENE, width=width, height=height, spp=16)
+    params = scene.params
+    pairs = []
+    surrogates = boundary.Boundary.surrogates
 
-    def step():
-        scene = raymitsuba.load(SCENE, width=width, height=height, spp=16)
-        params = scene.params
-        for key in ("translate2.offset", "camera.eye"):
+    def counted(self, all_pairs, lo, hi):  # (the boundary pass's pair count)
+        if lo == 0:
+            pairs.append(len(all_pairs["kind"]))
+        return surrogates(self, all_pairs, lo, hi)
+
+    def step(i):
+        started = time.perf_counter()
+        for key in keys:
+            v = params[key]
+            shift = 1e-3 if i % 2 == 0 else -1e-3
+            params[key] = mi.Point3f(v.x + shift, v.y, v.z + shift)
             dr.enable_grad(params[key])
         params.update()
-        started = time.perf_counter()
+        moved = time.perf_counter()
         image = raymitsuba.render(scene)
         dr.backward(dr.mean(dr.square(image - target), axis=None))
         dr.grad(params["camera.eye"]).numpy()
-        return time.perf_counter() - started
+        done = time.perf_counter()
+        return done - started, moved - started
 
-    primal(), step()  # (compile the kernels)
+    primal(), step(0), step(1)  # (compile the kernels)
     p = statistics.median(primal() for _ in range(repeats))
-    s = statistics.median(step() for _ in range(repeats))
+    boundary.Boundary.surrogates = counted
+    try:
+        steps = [step(i) for i in range(repeats)]
+    finally:
+        boundary.Boundary.surrogates = surrogates
+    s = statistics.median(t for t, _ in steps)
+    u = statistics.median(m for _, m in steps)
     print(f"\ncost at {width} x {height}, spp 16 (k = 4), medians of {repeats}: primal {p:.2f} s, "
-          f"gradient step (translate2.offset, camera.eye) {s:.2f} s, ratio {s / p:.1f}")
+          f"gradient step (translate2.offset, camera.eye) {s:.2f} s (of which the move, "
+          f"params.update(), {u:.2f} s), ratio {s / p:.1f}; boundary pairs {pairs[-1]} "
+          f"({pairs[-1] / (width * height):.1f} per pixel)")
 
 
 def figure(mi, path, width=64, height=48):

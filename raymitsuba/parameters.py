@@ -183,6 +183,7 @@ class GeometryKeys:
     def _apply(self, moved, camera):
         """Set the moved shapes and the camera in Mitsuba, and let it update."""
         from raymitsuba.backend import mitsuba
+        from raymitsuba.plugins.whitted.arrays import jit_array
 
         mi = mitsuba()
         params = self.mitsuba
@@ -190,7 +191,7 @@ class GeometryKeys:
             if new[0] == "sphere":
                 params[f"{name}.to_world"] = _opaque(mi.Transform4f(mi.ScalarTransform4f(new[3])))
             else:
-                params[f"{name}.vertex_positions"] = mi.Float(new[1])
+                params[f"{name}.vertex_positions"] = jit_array(mi.Float, new[1])
         if any(not np.array_equal(a, b) for a, b in zip(camera[:3], self.camera[:3])) \
                 or camera[3] != self.camera[3]:
             eye, lookat, up, fov = camera

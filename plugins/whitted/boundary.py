@@ -72,6 +72,7 @@ import numpy as np
 
 from raymitsuba.options import GIB
 
+from .arrays import jit_array
 from .guards import BudgetError
 from .hits import MESH, SMOOTH, SPHERE
 from .tree import reflect, refract
@@ -106,6 +107,12 @@ def wanted(tracer, scene):
             if value is not None and dr.grad_enabled(value):
                 return True
     return False
+
+
+def crossed(cell_l, cell_r):
+    """How many checker lines (u and v) lie between two samples' cells (int8)."""
+    return (cell_l[..., 0] != cell_r[..., 0]).view(np.int8) \
+        + (cell_l[..., 1] != cell_r[..., 1]).view(np.int8)
 
 
 def lattice_side(spp):
@@ -176,19 +183,49 @@ class Boundary:
     def collect(self, job, start, count, color):
         """Record the keys and colors of a chunk's samples (``color``: one lane per camera
         ray of the job's pixels start .. start + count - 1)."""
-        y, x = self.lattice_points(job, start, count)
+        if job.pixels is None:  # a range of pixels: written by rows of the lattice
+            first = job.first + start
+
+            def put(target, values):
+                self.put_range(target, first, values)
+        else:
+            y, x = self.lattice_points(job, start, count)
+
+            def put(target, values):
+                target[y, x] = values
         with dr.suspend_grad():
             rays = job.rays(self.sensor, start, count)
             keys = self.keys(rays)
         color = dr.detach(color)
-        self.color[y, x] = np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1)
+        put(self.color, np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1))
         for name, values in keys.items():
             target = getattr(self, name)
             if name in ("lit", "occluder") or name.startswith("chain_"):
                 for j, v in enumerate(values):
-                    target[j][y, x] = v
+                    put(target[j], v)
             else:
-                target[y, x] = values
+                put(target, values)
+
+    def put_range(self, target, first, values):
+        """Write ``values`` (one per lane of the pixels first, first + 1, ...: spp lanes each,
+        sample s at (s // k, s % k) of its pixel) into the lattice array ``target`` ((H k, W k,
+        ...)): the pixels of one image row at a time, or whole rows, as blocks."""
+        k, width = self.k, self.width
+        tail = target.shape[2:]
+        view = target.reshape((self.height, k, width, k) + tail)  # [row, sy, column, sx]
+        per_pixel = values.reshape((-1, k, k) + tail)  # [pixel, sy, sx]
+        done, total = 0, len(per_pixel)
+        while done < total:
+            row, column = divmod(first + done, width)
+            if column == 0 and total - done >= width:  # whole rows
+                rows = (total - done) // width
+                block = per_pixel[done:done + rows * width].reshape((rows, width, k, k) + tail)
+                view[row:row + rows] = block.swapaxes(1, 2)
+                done += rows * width
+            else:  # the pixels of one row
+                span = min(width - column, total - done)
+                view[row, :, column:column + span] = per_pixel[done:done + span].swapaxes(0, 1)
+                done += span
 
     def keys(self, rays):
         """The keys of the samples of ``rays`` (detached), as numpy arrays."""
@@ -205,7 +242,9 @@ class Boundary:
         for _ in range(CHAIN_DEPTH):
             ray_k, go, tir = self.chain_step(terms, si_k, ray_k)
             alive = alive & go
-            dr.eval(ray_k, go, tir)
+            dr.eval(ray_k, go, tir, alive)
+            if not dr.any(alive):  # (the chain's keys past its end: as the lattice starts)
+                break
             si_k = _evaluated(self.tracer.intersect(scene, table, ray_k, coherent=False))
             found = alive & si_k.is_valid()
             chain["chain_shape"].append(dr.select(
@@ -273,8 +312,52 @@ class Boundary:
         kind_of = self.surface_kinds()
         found = []
         rows, cols = self.t.shape
+        ended = [bool(np.all(shape == STOP)) for shape in self.chain_shape]
         for axis in (1, 0):  # rows (X, X + 1), then columns (Y, Y + 1)
-            ly, lx = np.nonzero(np.ones((rows - (axis == 0), cols - (axis == 1)), bool))
+            # every pair at once, as two views of the lattice: L (the first sample of each
+            # pair) and R (the second)
+            left = np.s_[:, :-1] if axis == 1 else np.s_[:-1, :]
+            right = np.s_[:, 1:] if axis == 1 else np.s_[1:, :]
+            visibility = self.surface_differs(left, right, kind_of)
+            kind = np.full(visibility.shape, -1, np.int8)  # (small types: a pass per array)
+            light = np.zeros(visibility.shape, np.int32)
+            kind[visibility] = VISIBILITY
+            same = ~visibility & (self.shape[left] != NO_HIT)
+            # On one surface, a pair across one edge only: where a shadow edge and a checker
+            # line (or two shadow edges) pass between the same two samples, the jump f_L - f_R
+            # is the sum of both and belongs to neither alone (such pairs are left out: a
+            # share of the crossings that falls as 1/k).
+            edges = np.zeros(visibility.shape, np.int16)
+            for j in range(len(self.lights)):
+                edge = same & (self.lit[j][left] != self.lit[j][right])
+                edges += edge
+                kind[edge], light[edge] = SHADOW, j
+            lines = crossed(self.cell[left], self.cell[right])  # u and v lines crossed
+            checker = same & (lines > 0)
+            edges += lines * checker
+            kind[checker] = CHECKER
+            kind[same & (edges > 1)] = -1
+            # Seen along the specular chain (mirrors, glass): the first bounce whose key
+            # differs, if the first hits are alike; a pair whose chains differ in total
+            # internal reflection, or across two edges at that bounce, is left out.
+            depth = np.full(visibility.shape, -1, np.int8)
+            pending = same & (edges == 0)
+            for d in range(CHAIN_DEPTH):
+                if not pending.any() or ended[d]:  # (past every chain's end: no pair)
+                    break
+                cs_l, cs_r = self.chain_shape[d][left], self.chain_shape[d][right]
+                tir = self.chain_tir[d][left] != self.chain_tir[d][right]
+                shape_differs = cs_l != cs_r
+                lines = crossed(self.chain_cell[d][left], self.chain_cell[d][right])
+                here = pending & (shape_differs | (lines > 0) | tir)
+                ok = here & ~tir & ((shape_differs & (lines >= 0)) | (lines == 1))
+                ok &= (cs_l != STOP) & (cs_r != STOP)
+                kind[ok & shape_differs] = CHAIN_VISIBILITY
+                kind[ok & ~shape_differs] = CHAIN_CHECKER
+                depth[ok] = d
+                pending &= ~here
+            keep = kind >= 0
+            ly, lx = np.nonzero(keep)  # (row-major: the order of the lattice)
             ry, rx = ly + (axis == 0), lx + (axis == 1)
             # the neighbours of L and R across the axis, either side (one side at the border):
             # they give the edge's normal at the crossing (centred differences)
@@ -284,48 +367,11 @@ class Boundary:
             else:
                 beside = [(y, np.minimum(x + 1, cols - 1)) for y, x in ((ly, lx), (ry, rx))] \
                     + [(y, np.maximum(x - 1, 0)) for y, x in ((ly, lx), (ry, rx))]
-            visibility = self.surface_differs(ly, lx, ry, rx, kind_of)
-            kind = np.full(len(ly), -1, np.int64)
-            light = np.zeros(len(ly), np.int64)
-            kind[visibility] = VISIBILITY
-            same = ~visibility & (self.shape[ly, lx] != NO_HIT)
-            # On one surface, a pair across one edge only: where a shadow edge and a checker
-            # line (or two shadow edges) pass between the same two samples, the jump f_L - f_R
-            # is the sum of both and belongs to neither alone (such pairs are left out: a
-            # share of the crossings that falls as 1/k).
-            edges = np.zeros(len(ly), np.int64)
-            for j in range(len(self.lights)):
-                edge = same & (self.lit[j][ly, lx] != self.lit[j][ry, rx])
-                edges += edge
-                kind[edge], light[edge] = SHADOW, j
-            lines = np.sum(self.cell[ly, lx] != self.cell[ry, rx], -1)  # u and v lines crossed
-            checker = same & (lines > 0)
-            edges += lines * checker
-            kind[checker] = CHECKER
-            kind[same & (edges > 1)] = -1
-            # Seen along the specular chain (mirrors, glass): the first bounce whose key
-            # differs, if the first hits are alike; a pair whose chains differ in total
-            # internal reflection, or across two edges at that bounce, is left out.
-            depth = np.full(len(ly), -1, np.int64)
-            pending = same & (edges == 0)
-            for d in range(CHAIN_DEPTH):
-                cs_l, cs_r = self.chain_shape[d][ly, lx], self.chain_shape[d][ry, rx]
-                tir = self.chain_tir[d][ly, lx] != self.chain_tir[d][ry, rx]
-                shape_differs = cs_l != cs_r
-                lines = np.sum(self.chain_cell[d][ly, lx] != self.chain_cell[d][ry, rx], -1)
-                here = pending & (shape_differs | (lines > 0) | tir)
-                ok = here & ~tir & ((shape_differs & (lines >= 0)) | (lines == 1))
-                ok &= (cs_l != STOP) & (cs_r != STOP)
-                kind[ok & shape_differs] = CHAIN_VISIBILITY
-                kind[ok & ~shape_differs] = CHAIN_CHECKER
-                depth[ok] = d
-                pending &= ~here
-            keep = kind >= 0
             points = dict(L=(ly, lx), R=(ry, rx), LA=beside[0], RA=beside[1], LB=beside[2],
                           RB=beside[3])
-            found.append(dict(axis=np.full(keep.sum(), axis), kind=kind[keep], light=light[keep],
-                              depth=depth[keep],
-                              **{name: (y[keep], x[keep]) for name, (y, x) in points.items()}))
+            found.append(dict(axis=np.full(len(ly), axis), kind=kind[keep].astype(np.int64),
+                              light=light[keep].astype(np.int64),
+                              depth=depth[keep].astype(np.int64), **points))
         return {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))
                        if name in POINTS else np.concatenate([f[name] for f in found]))
                 for name in found[0]}
@@ -334,23 +380,26 @@ class Boundary:
         """The HitTable kind bits by shape registry id."""
         return self.terms.geometry.kind.numpy()
 
-    def surface_differs(self, ly, lx, ry, rx, kind_of):
-        """Whether two samples see different surfaces: another shape (or one a miss), or
-        another face of a flat mesh that is not coplanar with the first."""
-        sl, sr = self.shape[ly, lx], self.shape[ry, rx]
+    def surface_differs(self, left, right, kind_of):
+        """Whether two samples see different surfaces (the lattice's views ``left`` and
+        ``right``, numpy index expressions): another shape (or one a miss), or another face
+        of a flat mesh that is not coplanar with the first."""
+        sl, sr = self.shape[left], self.shape[right]
         differs = sl != sr
-        faces = ~differs & (sl != NO_HIT) & (self.prim[ly, lx] != self.prim[ry, rx])
+        faces = ~differs & (sl != NO_HIT) & (self.prim[left] != self.prim[right])
+        if not faces.any():
+            return differs
         kind = kind_of[np.where(sl == NO_HIT, 0, np.minimum(sl, len(kind_of) - 1))]
         flat = (kind & MESH != 0) & (kind & SMOOTH == 0)
-        bent = np.linalg.norm(self.normal[ly, lx] - self.normal[ry, rx], axis=-1) > COPLANAR
+        bent = np.linalg.norm(self.normal[left] - self.normal[right], axis=-1) > COPLANAR
         return differs | (faces & flat & bent)
 
     # -- the surrogates --------------------------------------------------------------------------
     def film_rays(self, y, x):
         """The camera rays of lattice points (y, x) (numpy), the camera keys attached."""
         k = self.k
-        pos = mi.Point2f(mi.Float(((x + 0.5) / (k * self.width)).astype(np.float32)),
-                         mi.Float(((y + 0.5) / (k * self.height)).astype(np.float32)))
+        pos = mi.Point2f(jit_array(mi.Float, ((x + 0.5) / (k * self.width)).astype(np.float32)),
+                         jit_array(mi.Float, ((y + 0.5) / (k * self.height)).astype(np.float32)))
         ray, _ = self.sensor.sample_ray(time=0.0, sample1=0.5, sample2=pos,
                                         sample3=mi.Point2f(0.5))
         ray = mi.Ray3f(ray)
@@ -395,9 +444,10 @@ class Boundary:
         normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
         df = self.jump(L, R, axis, w, kind)
         scale = np.where(valid, normal2 / (self.k ** 2 * np.where(valid, along, 1.0)), 0.0)
-        g_star = (1.0 - mi.Float(w.astype(np.float32))) * g_l + mi.Float(w.astype(np.float32)) * g_r
-        rate = -(g_star - dr.detach(g_star)) * mi.Float(scale.astype(np.float32))
-        surrogate = mi.Color3f(*(mi.Float(np.ascontiguousarray(df[:, c])) for c in range(3))) * rate
+        w32 = jit_array(mi.Float, w.astype(np.float32))
+        g_star = (1.0 - w32) * g_l + w32 * g_r
+        rate = -(g_star - dr.detach(g_star)) * jit_array(mi.Float, scale.astype(np.float32))
+        surrogate = mi.Color3f(*(jit_array(mi.Float, df[:, c]) for c in range(3))) * rate
         return surrogate, self.spread(L, axis, w, np.abs(across) / np.maximum(np.abs(along), 1e-30))
 
     def jump(self, L, R, axis, w, kind):
@@ -467,7 +517,7 @@ class Boundary:
                 edge = self.crossed_edge(table, shadows, blocker[:, 0], blocker[:, 1])
                 for i, shadow in enumerate(shadows):
                     gs = self.inside(table, shadow, blocker[:, 0], blocker[:, 1], edge)
-                    choice[i] = dr.select(mi.Bool(mask), gs, choice[i])
+                    choice[i] = dr.select(jit_array(mi.Bool, mask), gs, choice[i])
         # checker lines
         if (kind == CHECKER).any():
             choice = self.checker_crossing(terms, his, self.cell[L], self.cell[R],
@@ -493,7 +543,7 @@ class Boundary:
         gf_l, gf_r = gf[0].numpy(), gf[1].numpy()
         use_n = np.sign(gn_l) != np.sign(gn_r)
         use_f = ~use_n & (f_shape < STOP) & (np.sign(gf_l) != np.sign(gf_r))
-        return [dr.select(mi.Bool(use_n), a, dr.select(mi.Bool(use_f), b, c))
+        return [dr.select(jit_array(mi.Bool, use_n), a, dr.select(jit_array(mi.Bool, use_f), b, c))
                 for a, b, c in zip(gn, gf, crease)]
 
     def chain_crossing(self, table, terms, rays, his, L, R, kind, depth, g):
@@ -506,7 +556,7 @@ class Boundary:
                 ray, _, _ = self.chain_step(terms, si, ray)
                 dr.eval(ray)
                 si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
-                at = mi.Bool(depth == d)
+                at = jit_array(mi.Bool, depth == d)
                 final_ray = mi.Ray3f(dr.select(at, ray.o, final_ray.o),
                                      dr.select(at, ray.d, final_ray.d))
                 final_si = _merge(at, si, final_si)
@@ -515,7 +565,7 @@ class Boundary:
         left = tuple(a[d, L[0], L[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
         right = tuple(a[d, R[0], R[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
         vis = self.visibility(table, [r for r, _ in finals], left, right)
-        mask = mi.Bool(kind == CHAIN_VISIBILITY)
+        mask = jit_array(mi.Bool, kind == CHAIN_VISIBILITY)
         g = [dr.select(mask, a, b) for a, b in zip(vis, g)]
         if (kind == CHAIN_CHECKER).any():
             cl, cr = self.chain_cell[d, L[0], L[1]], self.chain_cell[d, R[0], R[1]]
@@ -532,19 +582,19 @@ class Boundary:
         slot = terms.surfaces.slot(his[0].shape, his[0].is_valid())
         size = dr.gather(mi.Float, terms.surfaces.layout.checker_size, slot)
         size = dr.select(size > 0, size, 1.0)
-        mask = mi.Bool(which)
+        mask = jit_array(mi.Bool, which)
         out = list(g)
         for i, si in enumerate(his):
-            u = dr.select(mi.Bool(coord == 0), si.uv.x, si.uv.y)
-            out[i] = dr.select(mask, u / size - mi.Float(line), out[i])
+            u = dr.select(jit_array(mi.Bool, coord == 0), si.uv.x, si.uv.y)
+            out[i] = dr.select(mask, u / size - jit_array(mi.Float, line), out[i])
         return out
 
     def inside(self, table, ray, shape, prim, edge=None):
         """The inside function of primitive (shape, prim) for each ray (numpy ids): > 0 where
         the ray's line meets it (see the module docstring). For a triangle, ``edge`` (numpy,
         per lane: 0, 1, 2, or -1 for the least of the three) picks the edge function."""
-        ids = mi.UInt32(np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-        valid = mi.Bool(shape != NO_HIT) & (ids < table.size)
+        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
         kind = dr.gather(mi.UInt32, table.kind, ids, valid)
         row = dr.gather(mi.UInt32, table.first, ids, valid)
         out = mi.Float(-1.0)
@@ -559,15 +609,15 @@ class Boundary:
             e = self.edge_functions(table, ray, d, row, prim, mesh)
             g = dr.minimum(dr.minimum(e[0], e[1]), e[2])
             if edge is not None:
-                which = mi.UInt32(np.maximum(edge, 0).astype(np.uint32))
+                which = jit_array(mi.UInt32, np.maximum(edge, 0).astype(np.uint32))
                 chosen = dr.select(which == 0, e[0], dr.select(which == 1, e[1], e[2]))
-                g = dr.select(mi.Bool(edge >= 0), chosen, g)
+                g = dr.select(jit_array(mi.Bool, edge >= 0), chosen, g)
             out = dr.select(mesh, g, out)
         return out
 
     def edge_functions(self, table, ray, d, row, prim, mesh):
         """The three normalized edge functions of each lane's face, signed to be > 0 inside."""
-        _, (p0, p1, p2) = table.corners(row, mi.UInt32(prim.astype(np.uint32)), mesh)
+        _, (p0, p1, p2) = table.corners(row, jit_array(mi.UInt32, prim.astype(np.uint32)), mesh)
         side = dr.dot(dr.detach(dr.cross(p1 - p0, p2 - p0)), dr.detach(d))
         sigma = dr.select(side <= 0, 1.0, -1.0)
         return [sigma * dr.dot(dr.cross(a - ray.o, b - ray.o), d) / dr.norm(b - a)
@@ -576,8 +626,8 @@ class Boundary:
     def crossed_edge(self, table, rays, shape, prim):
         """Per pair (numpy): the edge of the face (shape, prim) whose function changes sign
         between the rays of L and R (-1: none, or not a face)."""
-        ids = mi.UInt32(np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-        valid = mi.Bool(shape != NO_HIT) & (ids < table.size)
+        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
         if not table.has_meshes:
             return np.full(len(shape), -1)
         kind = dr.gather(mi.UInt32, table.kind, ids, valid)
@@ -594,8 +644,8 @@ class Boundary:
 
     def depth(self, table, ray, shape, prim):
         """The distance along each ray to the primitive (shape, prim)'s plane or sphere."""
-        ids = mi.UInt32(np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-        valid = mi.Bool(shape != NO_HIT) & (ids < table.size)
+        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
         kind = dr.gather(mi.UInt32, table.kind, ids, valid)
         row = dr.gather(mi.UInt32, table.first, ids, valid)
         out = mi.Float(0.0)
@@ -609,7 +659,7 @@ class Boundary:
             out = dr.select(sphere, (-b - root) / a, out)
         if table.has_meshes:
             mesh = valid & ((kind & MESH) != 0)
-            _, (p0, p1, p2) = table.corners(row, mi.UInt32(prim.astype(np.uint32)), mesh)
+            _, (p0, p1, p2) = table.corners(row, jit_array(mi.UInt32, prim.astype(np.uint32)), mesh)
             n = dr.cross(p1 - p0, p2 - p0)
             out = dr.select(mesh, dr.dot(n, p0 - ray.o) / dr.dot(n, ray.d), out)
         return out
@@ -625,7 +675,7 @@ class Boundary:
                 surrogate, (pixel, fraction) = self.surrogates(pairs, lo, hi)
                 weight = np.einsum("nj,njc->nc", fraction, grad_in[pixel]).astype(np.float32)
                 dr.backward_from(surrogate * mi.Color3f(
-                    *(mi.Float(np.ascontiguousarray(weight[:, c])) for c in range(3))),
+                    *(jit_array(mi.Float, weight[:, c]) for c in range(3))),
                     flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
 
     def forward(self, grads, last):

@@ -38,6 +38,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from .arrays import jit_array
+
 
 def key_delta(value):
     """``k - detach(k)`` per component of a key's value (a list of one-lane Floats): zero,
@@ -53,7 +55,7 @@ def linear(jacobian, deltas):
         column = jacobian[:, i]
         if not np.any(column):
             continue
-        term = mi.Float(column.astype(np.float32)) * delta
+        term = jit_array(mi.Float, column.astype(np.float32)) * delta
         out = term if out is None else out + term
     return out
 

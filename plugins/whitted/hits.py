@@ -35,6 +35,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from .arrays import jit_array
+
 MESH, SMOOTH, TEXCOORDS, SPHERE = 1, 2, 4, 8  # bits of a shape's kind (0: not in the table)
 
 
@@ -184,16 +186,16 @@ class HitTable:
                              else np.zeros(2 * count, np.float32))
             face_count += len(mesh_faces) // 3
             vertex_count += count
-        self.kind, self.first = mi.UInt32(kind), mi.UInt32(first)
+        self.kind, self.first = jit_array(mi.UInt32, kind), jit_array(mi.UInt32, first)
         # The table's length as data, not as a constant of the kernels (it grows with the scene).
         self.size = dr.opaque(mi.UInt32, size)
         self.has_meshes, self.has_spheres = bool(faces), bool(spheres)
 
         def upload(parts, dtype, empty):
-            return mi.Float(np.concatenate(parts).astype(dtype)) if parts else \
+            return jit_array(mi.Float, np.concatenate(parts).astype(dtype)) if parts else \
                 dr.zeros(mi.Float, empty)
 
-        self.faces = mi.UInt32(np.concatenate(faces).astype(np.uint32)) if faces else \
+        self.faces = jit_array(mi.UInt32, np.concatenate(faces)) if faces else \
             dr.zeros(mi.UInt32, 3)
         self.positions = upload(positions, np.float32, 3)
         self.has_smooth = bool(np.any(kind & SMOOTH))
@@ -204,12 +206,12 @@ class HitTable:
         if spheres:
             center = np.array([c for c, _, _ in spheres], np.float32)
             axis = np.array([a for _, a, _ in spheres], np.float32)
-            self.center = mi.Point3f(*(mi.Float(np.ascontiguousarray(center[:, i]))
+            self.center = mi.Point3f(*(jit_array(mi.Float, center[:, i])
                                        for i in range(3)))
-            self.radius = mi.Float(np.linalg.norm(axis.astype(np.float64), axis=1)
+            self.radius = jit_array(mi.Float, np.linalg.norm(axis.astype(np.float64), axis=1)
                                    .astype(np.float32))
             # columns of the world-to-object transform (its first three rows), 4 x 3 per sphere
-            self.to_object = mi.Float(np.array([t for _, _, t in spheres], np.float32).ravel()) \
+            self.to_object = jit_array(mi.Float, np.array([t for _, _, t in spheres], np.float32)) \
                 if self.uv else None
         else:
             self.center = self.radius = self.to_object = None

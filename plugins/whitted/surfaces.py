@@ -34,6 +34,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from .arrays import jit_array
 from .hits import HitTable, shape_ids
 from .protocol import SURFACE_PARAMETERS, check_emitter, check_surface
 from ..checkerboard import checker
@@ -134,7 +135,7 @@ def distinct_bsdfs(shapes, shape_ids):
     slot_of_index[order] = np.arange(len(found), dtype=np.uint32)
     table = np.zeros(max(int(shape_ids.max()) + 1, MIN_ROWS), dtype=np.uint32)
     table[shape_ids] = slot_of_index[index_of_shape]
-    return [check_surface(found[i][1], found[i][2]) for i in order], mi.UInt32(table)
+    return [check_surface(found[i][1], found[i][2]) for i in order], jit_array(mi.UInt32, table)
 
 
 def distinct_materials(bsdfs):
@@ -150,7 +151,7 @@ def checker_sizes(bsdfs):
     """The checkerboard's square size by slot (Float; 0: none), None if no surface has one."""
     sizes = np.zeros(max(len(bsdfs), MIN_ROWS), np.float32)
     sizes[:len(bsdfs)] = [float(bsdf.checker_size) for bsdf in bsdfs]
-    return mi.Float(sizes) if np.any(sizes > 0) else None
+    return jit_array(mi.Float, sizes) if np.any(sizes > 0) else None
 
 
 def image_textures(bsdfs):
@@ -201,8 +202,8 @@ def attached_values(materials):
 def upload(name, by_slot):
     """The device array of a parameter's values by slot (``color``: Color3f; others: Float)."""
     if name == "color":
-        return mi.Color3f(*(mi.Float(np.ascontiguousarray(by_slot[:, c])) for c in range(3)))
-    return mi.Float(by_slot)
+        return mi.Color3f(*(jit_array(mi.Float, by_slot[:, c]) for c in range(3)))
+    return jit_array(mi.Float, by_slot)
 
 
 class Surfaces:
@@ -226,7 +227,7 @@ class Surfaces:
         for name in SURFACE_PARAMETERS:
             setattr(self, name, upload(name, self.host[name]))
         for name, m, value in attached:
-            slots = mi.UInt32(np.flatnonzero(self.layout.material_of_slot == m).astype(np.uint32))
+            slots = jit_array(mi.UInt32, np.flatnonzero(self.layout.material_of_slot == m))
             dr.scatter(getattr(self, name), value, slots)
         self.any_transparent = bool(np.any(self.host["refractivity"] > 0))  # any kt > 0
 
