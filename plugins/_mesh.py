@@ -10,6 +10,7 @@ import numpy as np
 import mitsuba as mi
 
 from raymitsuba import tessellation
+from raymitsuba.plugins.whitted.arrays import jit_array
 
 
 def matrix(props):
@@ -27,9 +28,9 @@ def initialize(mesh, name, props, positions, normals, texcoords, faces, smooth=T
     mi.Mesh.__init__(mesh, name, len(world.positions), len(world.faces), props,
                      has_vertex_normals=smooth, has_vertex_texcoords=True)
     params = mi.traverse(mesh)
-    params["vertex_positions"] = mi.Float(world.positions.astype(np.float32).ravel())
-    params["faces"] = mi.UInt32(world.faces.astype(np.uint32).ravel())
+    params["vertex_positions"] = jit_array(mi.Float, world.positions)
+    params["faces"] = jit_array(mi.UInt32, world.faces)
     if smooth:
-        params["vertex_normals"] = mi.Float(world.normals.astype(np.float32).ravel())
-    params["vertex_texcoords"] = mi.Float(world.texcoords.astype(np.float32).ravel())
+        params["vertex_normals"] = jit_array(mi.Float, world.normals)
+    params["vertex_texcoords"] = jit_array(mi.Float, world.texcoords)
     params.update()

@@ -44,6 +44,7 @@ from raymitsuba import options
 from raymitsuba.options import RenderOptions
 
 from . import antialias, boundary, guards
+from .arrays import jit_array
 from .camera import box_filter, camera_rays, pixel_means
 from .chunks import Chunker, Job, probe
 from .tree import Tracer
@@ -146,7 +147,7 @@ class Whitted(mi.CppADIntegrator):
         edges = self._boundary(scene, sensor, spp, width, height)  # (issue 13) or None
         for job, weights in self._adjoint_jobs(scene, sensor, spp, width, height):
             # pixels refined later take their value (and their gradient) from a later job
-            grad = grad_in if weights is None else grad_in * mi.Float(np.repeat(weights, 3))
+            grad = grad_in if weights is None else grad_in * jit_array(mi.Float, np.repeat(weights, 3))
 
             def visit(start, count, color, job=job, grad=grad):
                 if edges is not None:
