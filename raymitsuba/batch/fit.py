@@ -106,9 +106,7 @@ def fit_many(scenes: Sequence[str], targets: Sequence[str], outputs: Sequence[st
 
     def on_result(result: Result):
         item = items[owners[result.item[0]]]
-        item.attempts, item.seconds = result.attempts, result.seconds
-        if result.worker:
-            item.workers.append(result.worker)
+        item.count(result)  # (one task per fit)
         if result.ok:
             write(item, result.value)
         else:

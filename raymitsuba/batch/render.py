@@ -54,6 +54,14 @@ class Item:
     def ok(self) -> bool:
         return self.status in ("done", "skipped")
 
+    def count(self, result) -> None:
+        """Add a task's :class:`~raymitsuba.batch.core.Result` (one of the item's tasks:
+        a tiled image has one per band) to the item's attempts, seconds and workers."""
+        self.attempts += result.attempts
+        self.seconds += result.seconds
+        if result.worker:
+            self.workers.append(result.worker)
+
     def record(self) -> dict:
         return dict(scene=self.scene, output=self.output, status=self.status,
                     error=self.error, attempts=self.attempts, seconds=round(self.seconds, 3),
@@ -208,10 +216,7 @@ def render_many(scenes: Sequence, outputs: Sequence[str], client=None,
         index = result.item[0]
         i, k = owners[index]
         item = items[i]
-        item.attempts += result.attempts
-        item.seconds += result.seconds
-        if result.worker:
-            item.workers.append(result.worker)
+        item.count(result)
         if not result.ok:  # a tiled item ends at its first band not done
             if item.status == "pending":
                 item.status, item.error = result.status, result.error
