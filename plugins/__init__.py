@@ -6,6 +6,7 @@ plugin name        kind       file
 ``raywhitted``     integrator ``whitted/``: the recursive ray tracer (a package)
 ``rayphong``       BSDF       ``phong.py``: the .RAY material
 ``raytextured``    BSDF       ``textured.py``: a material times textures
+``raysurfaceset``  BSDF       ``surfaceset.py``: a surface per primitive (sphere set)
 ``raychecker``     texture    ``checkerboard.py``: the plane checkerboard
 ``raylight``       emitter    ``light.py``: ambient/point/directional/spot
 ``raybackground``  emitter    ``background.py``: the background color
@@ -29,11 +30,13 @@ def register():
 
     if _registered == mi.variant():
         return
-    from . import background, checkerboard, light, phong, plane, textured, triangles, whitted
+    from . import (background, checkerboard, light, phong, plane, surfaceset, textured,
+                   triangles, whitted)
 
     mi.register_integrator("raywhitted", lambda props: whitted.Whitted(props))
     mi.register_bsdf("rayphong", lambda props: phong.Phong(props))
     mi.register_bsdf("raytextured", lambda props: textured.Textured(props))
+    mi.register_bsdf("raysurfaceset", lambda props: surfaceset.SurfaceSet(props))
     mi.register_texture("raychecker", lambda props: checkerboard.Checkerboard(props))
     mi.register_emitter("raylight", lambda props: light.Light(props))
     mi.register_emitter("raybackground", lambda props: background.Background(props))

@@ -87,7 +87,7 @@ def source_data(source, model: Scene):
 
 def load(source, width=None, height=None, spp=None, max_depth=None, srgb=None, dialect="auto",
          aa=None, memory_budget=None, bailout=None, time_limit=None,
-         ray_offset_scale=None) -> Loaded:
+         ray_offset_scale=None, sphere_set=None) -> Loaded:
     """Parse (a path, .RAY text or a Scene, in ``dialect``) and load it into Mitsuba.
 
     The other keywords are render options: :class:`raymitsuba.options.RenderOptions` states
@@ -103,7 +103,8 @@ def load(source, width=None, height=None, spp=None, max_depth=None, srgb=None, d
     width, height = model.image_size(width, height)
     options = Options.given(width=width, height=height, spp=spp, max_depth=max_depth, srgb=srgb,
                             aa=aa, memory_budget=memory_budget, bailout=bailout,
-                            time_limit=time_limit, ray_offset_scale=ray_offset_scale)
+                            time_limit=time_limit, ray_offset_scale=ray_offset_scale,
+                            sphere_set=sphere_set)
     with no_cyclic_gc():  # objects by the 10^4: collections would re-scan them
         scene_dict = translate(model, options)
         # Serially: a mesh plugin's constructor waits on Dr.Jit (params.update() evaluates),

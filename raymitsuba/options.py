@@ -141,6 +141,12 @@ class RenderOptions:
              "pixels whose value hangs on it).",
         INTEGRATOR, float, low=0, low_open=True, cli=False)
 
+    sphere_set: int = option(
+        256, "Draw the opaque analytic spheres as one shape (raymitsuba/sphere_set.py) when a "
+             "scene has at least this many (0: never): loads 10^4 spheres in milliseconds; "
+             "their materials must stay opaque.",
+        SCENE, int, low=0, cli=False)
+
     def __post_init__(self):
         for name, spec in specs():
             object.__setattr__(self, name, spec.check(name, getattr(self, name)))

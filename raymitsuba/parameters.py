@@ -137,6 +137,11 @@ class GeometryKeys:
             if old[0] != new[0]:
                 raise ParameterError(f"it changes how `{name}` is represented")
             if old[0] == "fixed":
+                if old != new and old[1] == "ellipsoids":
+                    raise ParameterError(
+                        f"it moves a sphere of `{name}`, the sphere set (a scene's many opaque "
+                        "spheres as one shape, which does not move; load the scene with "
+                        "sphere_set=0 to fit them)")
                 if old != new:
                     raise ParameterError(f"it moves `{name}`, a {old[1]} (planes and tessellated "
                                          "objects cannot move: their meshes are rebuilt from the "

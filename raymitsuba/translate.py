@@ -19,7 +19,9 @@ Geometry choices (the work is linear in the number of objects, done in bulk with
 wherever there are many):
 
 * sphere: Mitsuba's analytic ``sphere`` when the transform is a similarity
-  without mirroring (exact), else tessellated (below);
+  without mirroring (exact), else tessellated (below); in a scene with at least
+  ``Options.sphere_set`` (256) opaque analytic spheres, those are one shape, ``spheres``
+  (:mod:`raymitsuba.sphere_set`: Mitsuba's ``ellipsoids``, exact spheres too);
 * cylinder, cone, and the other spheres: tessellated (see :mod:`raymitsuba.tessellation`),
   all those of one surface merged into one smooth ``raytriangles`` mesh, ``quadrics_{k}``;
 * plane: ``rayplane``, rings centred under the camera out past the horizon;
@@ -59,7 +61,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from raymitsuba import tessellation
+from raymitsuba import sphere_set, tessellation
 from raymitsuba.model import Material, ObjectKind, Scene, SceneObject
 from raymitsuba.options import RenderOptions
 
@@ -197,7 +199,7 @@ class HOST:
     same code with numpy values (no Mitsuba object), so that a key's effect on every shape is
     read from the translation itself (:func:`shape_geometry`)."""
 
-    Float = UInt32 = staticmethod(np.asarray)
+    Float = UInt32 = TensorXf = staticmethod(np.asarray)
     ScalarColor3f = ScalarPoint3f = ScalarVector3f = staticmethod(lambda *v: tuple(v))
 
     @staticmethod
@@ -270,10 +272,13 @@ def shapes(model, options, surfaces, mi) -> dict:
         else:
             curved.append((surface_id, kind, objs))
     spheres, tessellated = analytic_or_tessellated(curved)
+    spheres, grouped = set_members(spheres, model, options)
     names = ShapeNames()
     for obj, to_world, surface_id in spheres:
         out[names.next("sphere", obj.line)] = {"type": "sphere", "to_world": mi.ScalarTransform4f(to_world),
                                      "bsdf": {"type": "ref", "id": surface_id}}
+    if grouped:
+        out["spheres"] = sphere_set_shape(grouped, mi)
     out |= {f"triangles_{k}": mesh for k, mesh in enumerate(triangles)}
     meshes = quadric_meshes(tessellated, model, options, mi)
     return out | {f"quadrics_{k}": mesh for k, mesh in enumerate(meshes)}
@@ -310,6 +315,35 @@ def analytic_or_tessellated(curved):
             tessellated.append((surface_id, kind, m[start:stop][~exact[start:stop]]))
         start = stop
     return spheres, tessellated
+
+
+def set_members(spheres, model, options):
+    """(The analytic spheres drawn one by one, those drawn as the sphere set): the set takes
+    the opaque spheres that do not contain the eye when there are at least
+    ``options.sphere_set`` of them (see :mod:`raymitsuba.sphere_set`)."""
+    if not options.sphere_set or len(spheres) < options.sphere_set:
+        return spheres, []
+    m = np.array([to_world for _, to_world, _ in spheres], np.float64)
+    opaque = np.array([model.materials[obj.material].refractivity == 0 for obj, _, _ in spheres])
+    eye = np.asarray(model.camera.eye, np.float64)
+    outside = np.linalg.norm(m[:, :3, 3] - eye, axis=1) > 1.001 * np.linalg.norm(m[:, :3, 0], axis=1)
+    member = opaque & outside
+    if np.count_nonzero(member) < options.sphere_set:
+        return spheres, []
+    return ([s for s, k in zip(spheres, member) if not k],
+            [s for s, k in zip(spheres, member) if k])
+
+
+def sphere_set_shape(members, mi) -> dict:
+    """The shape of the sphere set ([(object, to_world rows, surface id)]): Mitsuba's
+    ``ellipsoids`` holding them in this order, its BSDF a ``raysurfaceset`` naming each
+    one's surface (``surface_{k}`` for the k-th)."""
+    data = sphere_set.pack(np.array([to_world for _, to_world, _ in members], np.float64))
+    surfaces = {"type": "raysurfaceset"} | {
+        f"surface_{k}": {"type": "ref", "id": surface_id}
+        for k, (_, _, surface_id) in enumerate(members)}
+    return {"type": "ellipsoids", "data": mi.TensorXf(data), "extent": sphere_set.EXTENT,
+            "bsdf": surfaces}
 
 
 def matrices(objs) -> np.ndarray:

@@ -24,19 +24,21 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 # -- rendering ----------------------------------------------------------------------------------
-def load_ray(text, width=32, height=32, spp=1, max_depth=5, srgb=False, dialect="auto"):
+def load_ray(text, width=32, height=32, spp=1, max_depth=5, srgb=False, dialect="auto",
+             **options):
     import raymitsuba
 
     return raymitsuba.load(text, width=width, height=height, spp=spp, max_depth=max_depth,
-                           srgb=srgb, dialect=dialect)
+                           srgb=srgb, dialect=dialect, **options)
 
 
 def render_ray(text, width=32, height=32, spp=1, max_depth=5, srgb=False,
-               dialect="auto") -> np.ndarray:
-    """Render .RAY ``text``; a float32 numpy array of shape (height, width, 3), linear."""
+               dialect="auto", **options) -> np.ndarray:
+    """Render .RAY ``text``; a float32 numpy array of shape (height, width, 3), linear;
+    ``options``: the other options of ``raymitsuba.load``."""
     import raymitsuba
 
-    loaded = load_ray(text, width, height, spp, max_depth, srgb, dialect)
+    loaded = load_ray(text, width, height, spp, max_depth, srgb, dialect, **options)
     return np.array(raymitsuba.render(loaded))
 
 

@@ -31,6 +31,7 @@ ALLOWED = {
 ROOMS = {
     "raymitsuba.model": "shared", "raymitsuba.options": "shared", "raymitsuba.util": "shared",
     "raymitsuba.atomic": "shared", "raymitsuba.tessellation": "shared",
+    "raymitsuba.sphere_set": "shared",
     "raymitsuba.translate": "translate",
     "raymitsuba._llvm": "backend", "raymitsuba.backend": "backend", "raymitsuba.images": "backend",
     "raymitsuba.api": "library", "raymitsuba.fit": "library", "raymitsuba.parameters": "library", "raymitsuba.testing": "library",
@@ -112,8 +113,12 @@ def test_the_rooms_allowed_make_the_pipeline_order():
         assert all(order.index(other) < order.index(name) for other in allowed), name
 
 
+# The shared geometry conventions of the translator and the plugins: arrays, so numpy.
+NUMPY_CONVENTIONS = ("raymitsuba.tessellation", "raymitsuba.sphere_set")
+
+
 @pytest.mark.parametrize("name", sorted(n for n in MODULES if room(n) in ("format", "shared")
-                                        and n != "raymitsuba.tessellation"))
+                                        and n not in NUMPY_CONVENTIONS))
 def test_the_language_and_the_model_need_only_the_standard_library(name):
     """The .RAY front end (and the model it builds) runs without numpy or Mitsuba."""
     with open(MODULES[name], encoding="utf-8") as f:

@@ -129,11 +129,12 @@ def _evaluated(si):
 
 
 def _merge(mask, si, other):
-    """The fields the boundary terms read (uv, shape) of ``si`` where ``mask``, else of
-    ``other``."""
+    """The fields the boundary terms read (uv, shape, prim_index, t) of ``si`` where
+    ``mask``, else of ``other``."""
     out = dr.zeros(mi.SurfaceInteraction3f, dr.width(mask))
     out.uv = dr.select(mask, si.uv, other.uv)
     out.shape = dr.select(mask, si.shape, other.shape)
+    out.prim_index = dr.select(mask, si.prim_index, other.prim_index)
     out.t = dr.select(mask, si.t, other.t)
     return out
 
@@ -278,7 +279,7 @@ class Boundary:
         layout = terms.surfaces.layout
         if layout.checker_size is None:
             return np.zeros((dr.width(hit), 2), np.int64)
-        slot = terms.surfaces.slot(si.shape, hit)
+        slot = terms.surfaces.slot(si.shape, si.prim_index, hit)
         size = dr.gather(mi.Float, layout.checker_size, slot, hit)
         checkered = hit & (size > 0)
         size = dr.select(checkered, size, 1.0)
@@ -293,7 +294,7 @@ class Boundary:
         when ``si`` and ``ray`` are (eta, the geometry, the camera)."""
         surfaces = terms.surfaces
         hit = si.is_valid()
-        slot = surfaces.slot(si.shape, hit)
+        slot = surfaces.slot(si.shape, si.prim_index, hit)
         kr = surfaces.get("reflectivity", slot, hit)
         kt = surfaces.get("refractivity", slot, hit)
         eta = surfaces.get("ior", slot, hit)
@@ -579,7 +580,7 @@ class Boundary:
         count = len(which)
         coord = np.where(cl[:, 0] != cr[:, 0], 0, 1)
         line = np.maximum(cl, cr)[np.arange(count), coord].astype(np.float32)
-        slot = terms.surfaces.slot(his[0].shape, his[0].is_valid())
+        slot = terms.surfaces.slot(his[0].shape, his[0].prim_index, his[0].is_valid())
         size = dr.gather(mi.Float, terms.surfaces.layout.checker_size, slot)
         size = dr.select(size > 0, size, 1.0)
         mask = jit_array(mi.Bool, which)
@@ -601,8 +602,7 @@ class Boundary:
         d = dr.normalize(ray.d)
         if table.has_spheres:
             sphere = valid & ((kind & SPHERE) != 0)
-            c = dr.gather(mi.Point3f, table.center, row, sphere)
-            r = dr.gather(mi.Float, table.radius, row, sphere)
+            c, r = self.sphere(table, row, prim, sphere)
             out = dr.select(sphere, r - dr.norm(dr.cross(c - ray.o, d)), out)
         if table.has_meshes:
             mesh = valid & ((kind & MESH) != 0)
@@ -614,6 +614,14 @@ class Boundary:
                 g = dr.select(jit_array(mi.Bool, edge >= 0), chosen, g)
             out = dr.select(mesh, g, out)
         return out
+
+    @staticmethod
+    def sphere(table, row, prim, sphere):
+        """(centre, radius) of each lane's sphere: row ``row + prim`` (numpy ``prim``: 0 for a
+        Mitsuba sphere, the sphere's index in a sphere set)."""
+        row = row + jit_array(mi.UInt32, prim.astype(np.uint32))
+        return (dr.gather(mi.Point3f, table.center, row, sphere),
+                dr.gather(mi.Float, table.radius, row, sphere))
 
     def edge_functions(self, table, ray, d, row, prim, mesh):
         """The three normalized edge functions of each lane's face, signed to be > 0 inside."""
@@ -651,8 +659,7 @@ class Boundary:
         out = mi.Float(0.0)
         if table.has_spheres:
             sphere = valid & ((kind & SPHERE) != 0)
-            c = dr.gather(mi.Point3f, table.center, row, sphere)
-            r = dr.gather(mi.Float, table.radius, row, sphere)
+            c, r = self.sphere(table, row, prim, sphere)
             oc = ray.o - c
             a, b = dr.squared_norm(ray.d), dr.dot(oc, ray.d)
             root = dr.safe_sqrt(dr.square(b) - a * (dr.squared_norm(oc) - dr.square(r)))

@@ -15,7 +15,9 @@ computed from tables indexed by the shape's registry id:
   point and the interpolated attributes at the ray tracer's barycentrics, the
   normalized face normal; texture coordinates = the barycentrics on a mesh without
   any): the same bits;
-* Mitsuba's analytic spheres: centre, radius and world-to-object transform (the point
+* Mitsuba's analytic spheres, and the sphere set's (``raymitsuba.sphere_set``: one
+  ``ellipsoids`` shape, its sphere k in row first + k): centre, radius and world-to-object
+  transform (the point
   on the ray at the hit distance, the normal from the centre, uv = (phi / 2pi, theta / pi)
   of the object-space point, as Mitsuba's sphere does; uv may differ from Mitsuba's in
   the last bits).
@@ -35,7 +37,10 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from raymitsuba import sphere_set
+
 from .arrays import jit_array
+from .protocol import SurfaceSet
 
 MESH, SMOOTH, TEXCOORDS, SPHERE = 1, 2, 4, 8  # bits of a shape's kind (0: not in the table)
 
@@ -92,6 +97,34 @@ def sphere_rows(to_world, uv=True):
     return center, axis, [[row[i][0] for i in range(3)] for row in (it[j] for j in range(4))]
 
 
+class SphereRows:
+    """The sphere rows of a HitTable under construction: Mitsuba's spheres one by one
+    (:func:`sphere_rows`), a sphere set's in bulk; ``arrays()`` gives them as float32
+    (centres (n, 3), radii (n,), world-to-object columns (n, 4, 3) or None without uv)."""
+
+    def __init__(self, uv):
+        self.uv, self.count = uv, 0
+        self.center, self.radius, self.to_object = [], [], []
+
+    def add(self, center, axis, to_object):
+        self.center.append(np.array([center], np.float64))
+        self.radius.append(np.linalg.norm(np.array([axis], np.float32).astype(np.float64), axis=1))
+        self.to_object.append(np.array([to_object], np.float32) if self.uv else None)
+        self.count += 1
+
+    def add_set(self, data):
+        center, radius, to_object = sphere_set.unpack(data)
+        self.center.append(center)
+        self.radius.append(radius)
+        self.to_object.append(np.transpose(to_object, (0, 2, 1)) if self.uv else None)
+        self.count += len(radius)
+
+    def arrays(self):
+        to_object = np.concatenate(self.to_object).astype(np.float32) if self.uv else None
+        return (np.concatenate(self.center).astype(np.float32),
+                np.concatenate(self.radius).astype(np.float32), to_object)
+
+
 class HitTable:
     """The geometry of a scene by shape id (see the module docstring): ``update(scene)``
     before each render, then ``intersect``; the mesh arrays also serve the terminator lift
@@ -144,6 +177,10 @@ class HitTable:
             elif shape.class_name() == "Sphere":
                 buffers.append(shape)
                 key.append((int(shape_id), "sphere") + sphere_key(shape))
+            elif shape.class_name() == "Ellipsoids" and isinstance(shape.bsdf(), SurfaceSet):
+                data = shape_property(shape, "data")  # the sphere set (raymitsuba.sphere_set)
+                buffers.append(data)
+                key.append((int(shape_id), "spheres", data.index))
             else:  # not in the table: its hits need Mitsuba's dispatch
                 key.append((int(shape_id), "other"))
                 buffers.append(None)
@@ -159,17 +196,21 @@ class HitTable:
         kind = np.zeros(size, np.uint32)
         first = np.zeros(size, np.uint32)  # first face (meshes) or row (spheres)
         faces, positions, normals, texcoords = [], [], [], []
-        spheres = []
+        spheres = SphereRows(self.uv)
         face_count = vertex_count = 0
         self.rows_by_name = {}
         for k, item, shape in zip(key, buffers, shapes):
             shape_id = k[0]
             if k[1] == "other":
                 continue
-            self.rows_by_name[shape.id()] = len(spheres) if k[1] == "sphere" else vertex_count
+            self.rows_by_name[shape.id()] = spheres.count if k[1] != "mesh" else vertex_count
             if k[1] == "sphere":
-                kind[shape_id], first[shape_id] = SPHERE, len(spheres)
-                spheres.append(sphere_rows(shape_property(item, "to_world"), self.uv))
+                kind[shape_id], first[shape_id] = SPHERE, spheres.count
+                spheres.add(*sphere_rows(shape_property(item, "to_world"), self.uv))
+                continue
+            if k[1] == "spheres":  # its spheres are rows first + prim_index
+                kind[shape_id], first[shape_id] = SPHERE, spheres.count
+                spheres.add_set(item.numpy())
                 continue
             face_buf, position_buf, normal_buf, texcoord_buf = item
             mesh_faces = face_buf.numpy().astype(np.int64)
@@ -189,7 +230,7 @@ class HitTable:
         self.kind, self.first = jit_array(mi.UInt32, kind), jit_array(mi.UInt32, first)
         # The table's length as data, not as a constant of the kernels (it grows with the scene).
         self.size = dr.opaque(mi.UInt32, size)
-        self.has_meshes, self.has_spheres = bool(faces), bool(spheres)
+        self.has_meshes, self.has_spheres = bool(faces), spheres.count > 0
 
         def upload(parts, dtype, empty):
             return jit_array(mi.Float, np.concatenate(parts).astype(dtype)) if parts else \
@@ -203,16 +244,13 @@ class HitTable:
         # (only the attributes some mesh has: flat or untextured scenes keep no zeros)
         self.normals = upload(normals if self.has_smooth else [], np.float32, 3)
         self.texcoords = upload(texcoords if self.has_texcoords else [], np.float32, 2)
-        if spheres:
-            center = np.array([c for c, _, _ in spheres], np.float32)
-            axis = np.array([a for _, a, _ in spheres], np.float32)
+        if spheres.count:
+            center, radius, to_object = spheres.arrays()
             self.center = mi.Point3f(*(jit_array(mi.Float, center[:, i])
                                        for i in range(3)))
-            self.radius = jit_array(mi.Float, np.linalg.norm(axis.astype(np.float64), axis=1)
-                                   .astype(np.float32))
+            self.radius = jit_array(mi.Float, radius)
             # columns of the world-to-object transform (its first three rows), 4 x 3 per sphere
-            self.to_object = jit_array(mi.Float, np.array([t for _, _, t in spheres], np.float32)) \
-                if self.uv else None
+            self.to_object = jit_array(mi.Float, to_object) if self.uv else None
         else:
             self.center = self.radius = self.to_object = None
 
@@ -235,9 +273,9 @@ class HitTable:
             t = dr.select(mesh, t_m, t)
             p, n = dr.select(mesh, p_m, p), dr.select(mesh, n_m, n)
             shading_n, uv = dr.select(mesh, shading_m, shading_n), dr.select(mesh, uv_m, uv)
-        if self.has_spheres:
+        if self.has_spheres:  # (a Mitsuba sphere's one primitive is 0; a set's are its rows)
             sphere = valid & ((kind & SPHERE) != 0)
-            t_s, p_s, n_s, uv_s = self.sphere_hit(pi, ray, row, sphere, attached)
+            t_s, p_s, n_s, uv_s = self.sphere_hit(pi, ray, row + pi.prim_index, sphere, attached)
             t = dr.select(sphere, t_s, t)
             p, n = dr.select(sphere, p_s, p), dr.select(sphere, n_s, n)
             shading_n, uv = dr.select(sphere, n_s, shading_n), dr.select(sphere, uv_s, uv)
@@ -287,15 +325,23 @@ class HitTable:
         return t, p, n, shading_n, uv
 
     def sphere_hit(self, pi, ray, row, sphere, attached):
+        """The hit on the sphere of table row ``row``: t is the root of |o + t d - c| = r
+        that the ray tracer found (the one nearer its distance), solved here from the
+        table's centre and radius, so that every representation of a sphere (Mitsuba's
+        ``sphere``, the sphere set's ``ellipsoids``) gives the same bits, and attached to
+        the ray and the geometry. Solved as Mitsuba's sphere does (the same operations, so
+        the same bits as its ray tracer): from the point of the ray's line nearest the
+        centre, o + t0 d, which leaves no cancellation far from the sphere."""
         center = dr.gather(mi.Point3f, self.center, row, sphere)
-        t = pi.t
-        if attached:  # the nearer root of |o + t d - c| = r that the ray tracer found
-            radius = dr.gather(mi.Float, self.radius, row, sphere)
-            oc = ray.o - center
-            a, b = dr.squared_norm(ray.d), dr.dot(oc, ray.d)
-            root = dr.safe_sqrt(dr.square(b) - a * (dr.squared_norm(oc) - dr.square(radius)))
-            near, far = (-b - root) / a, (-b + root) / a
-            t = dr.replace_grad(t, dr.select(dr.abs(near - t) <= dr.abs(far - t), near, far))
+        radius = dr.gather(mi.Float, self.radius, row, sphere)
+        oc = ray.o - center
+        a = dr.squared_norm(ray.d)
+        t0 = -dr.dot(oc, ray.d) / a
+        h = dr.fma(ray.d, t0, oc)
+        _, near, far = mi.math.solve_quadratic(a, 2.0 * dr.dot(h, ray.d),
+                                               dr.squared_norm(h) - dr.square(radius))
+        near, far = near + t0, far + t0
+        t = dr.select(dr.abs(near - pi.t) <= dr.abs(far - pi.t), near, far)
         p = ray(t)
         n = mi.Normal3f(dr.normalize(p - center))
         if self.to_object is None:  # no uv used (see update)

@@ -7,7 +7,7 @@ and :func:`check_emitter` run then, once per plugin, and name a plugin that does
 provide its part; the names they check are the classes' own (:func:`members`).
 
 * :class:`Surface`: the BSDF of every shape of the scene (``rayphong``, ``raytextured``),
-  with its :class:`SurfaceMaterial`;
+  with its :class:`SurfaceMaterial`, or a :class:`SurfaceSet` of them, one per primitive;
 * :class:`Light` (``raylight``) and :class:`Background` (``raybackground``): every emitter
   of the scene is one or the other.
 """
@@ -32,6 +32,14 @@ class Surface(Protocol):
     material: SurfaceMaterial  # owns the shading parameters (shared by the surfaces that share it)
     checker_size: float  # > 0: the base color times the checkerboard of this square side; 0: none
     image_textures: tuple  # of mi.Texture: each eval(si) multiplies the base color, in order
+
+
+@runtime_checkable
+class SurfaceSet(Protocol):
+    """The BSDF of a shape whose primitives each have a surface (``raysurfaceset``: the
+    sphere set). Its surfaces must stay opaque (kt = 0; ``surfaces.py`` checks)."""
+
+    surfaces: tuple  # of Surface: primitive k's surface, for each primitive k of the shape
 
 
 class SurfaceMaterial(Protocol):

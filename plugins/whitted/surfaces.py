@@ -36,13 +36,17 @@ import numpy as np
 
 from .arrays import jit_array
 from .hits import HitTable, shape_ids
-from .protocol import SURFACE_PARAMETERS, check_emitter, check_surface
+from .protocol import SURFACE_PARAMETERS, SurfaceSet, check_emitter, check_surface
 from ..checkerboard import checker
 
 NO_SLOT = 0xFFFFFFFF  # a slot index that names no surface (e.g. an unused crossing record)
 # Every table has at least this many rows: Dr.Jit folds a gather from a one-element array
 # into a broadcast, so a scene with one surface would otherwise get kernels of its own.
 MIN_ROWS = 2
+
+
+class OpaqueSetError(ValueError):
+    """A material of the sphere set's spheres became transparent (see Surfaces)."""
 
 
 def with_kt_derivative(surfaces, transmittance, crossed_slots):
@@ -102,11 +106,12 @@ class Layout:
 
     def __init__(self, scene, key):
         """The layout of ``scene``, whose shapes have the registry ids ``key``."""
-        bsdfs, slot_of_shape = distinct_bsdfs(scene.shapes(), key)
+        bsdfs, slot_of_shape, primitives = distinct_bsdfs(scene.shapes(), key)
         materials, material_of_slot = distinct_materials(bsdfs)
         self.key = key  # the shapes' registry ids (scene.shapes() order): whose layout this is
         self.count = len(bsdfs)  # the slots: the distinct BSDFs, in increasing registry id
         self.slot_of_shape = slot_of_shape  # UInt32: the slot by shape registry id
+        self.primitives = primitives  # PrimitiveSlots of the surface sets' shapes, or None
         self.materials = materials  # the distinct materials of the surfaces
         self.material_of_slot = material_of_slot  # by slot, the index of its material
         self.checker_size = checker_sizes(bsdfs)  # Float by slot; None: no checkerboard at all
@@ -118,15 +123,20 @@ class Layout:
 
 
 def distinct_bsdfs(shapes, shape_ids):
-    """(The distinct BSDFs of ``shapes`` in slot order (increasing registry id), each checked
-    against the surface interface; the slot by shape registry id, UInt32)."""
+    """(The distinct surfaces of ``shapes`` in slot order (increasing registry id), each
+    checked against the surface interface; the slot by shape registry id, UInt32; the
+    :class:`PrimitiveSlots` of the shapes whose BSDF is a surface set, or None)."""
     if not shapes:
-        return [], dr.zeros(mi.UInt32, MIN_ROWS)
+        return [], dr.zeros(mi.UInt32, MIN_ROWS), None
     # (Not ``shapes_dr().bsdf()``: that getter is a kernel, folded to a constant when
     # all shapes share one BSDF, so its code would depend on the scene.)
-    bsdfs, index_of_shape = {}, np.empty(len(shapes), np.int64)
+    bsdfs, index_of_shape, sets = {}, np.zeros(len(shapes), np.int64), []
     for i, shape in enumerate(shapes):
         bsdf = shape.bsdf()
+        if isinstance(bsdf, SurfaceSet):  # a surface per primitive: their indices, in order
+            sets.append((i, [bsdfs.setdefault(id(member), (len(bsdfs), member, shape))[0]
+                             for member in bsdf.surfaces]))
+            continue
         index_of_shape[i] = bsdfs.setdefault(id(bsdf), (len(bsdfs), bsdf, shape))[0]
     found = list(bsdfs.values())
     registry_ids = [dr.reinterpret_array(mi.UInt32, mi.BSDFPtr(bsdf))[0] for _, bsdf, _ in found]
@@ -135,7 +145,29 @@ def distinct_bsdfs(shapes, shape_ids):
     slot_of_index[order] = np.arange(len(found), dtype=np.uint32)
     table = np.zeros(max(int(shape_ids.max()) + 1, MIN_ROWS), dtype=np.uint32)
     table[shape_ids] = slot_of_index[index_of_shape]
-    return [check_surface(found[i][1], found[i][2]) for i in order], jit_array(mi.UInt32, table)
+    primitives = PrimitiveSlots(sets, shape_ids, slot_of_index, len(table)) if sets else None
+    return ([check_surface(found[i][1], found[i][2]) for i in order],
+            jit_array(mi.UInt32, table), primitives)
+
+
+class PrimitiveSlots:
+    """The slots of the primitives of the shapes whose BSDF is a surface set
+    (``protocol.SurfaceSet``: the sphere set): ``first`` by shape registry id (UInt32:
+    the shape's first row of ``slot``, NO_SLOT for the other shapes) and ``slot`` (UInt32:
+    by row, the slot of that primitive's surface); ``slots`` (numpy): the slots they use."""
+
+    def __init__(self, sets, shape_ids, slot_of_index, rows):
+        first = np.full(rows, NO_SLOT, np.uint32)
+        slots, start = [], 0
+        for i, indices in sets:
+            first[shape_ids[i]] = start
+            slots.append(slot_of_index[np.asarray(indices, np.int64)])
+            start += len(indices)
+        by_row = np.concatenate(slots)
+        self.first = jit_array(mi.UInt32, first)
+        self.slot = jit_array(mi.UInt32, np.concatenate(
+            [by_row, np.zeros(max(MIN_ROWS - len(by_row), 0), np.uint32)]))
+        self.slots = np.unique(by_row)
 
 
 def distinct_materials(bsdfs):
@@ -230,12 +262,27 @@ class Surfaces:
             slots = jit_array(mi.UInt32, np.flatnonzero(self.layout.material_of_slot == m))
             dr.scatter(getattr(self, name), value, slots)
         self.any_transparent = bool(np.any(self.host["refractivity"] > 0))  # any kt > 0
+        primitives = self.layout.primitives
+        if primitives is not None and np.any(self.host["refractivity"][primitives.slots] > 0):
+            raise OpaqueSetError(
+                "raywhitted: a material of the sphere set has kt > 0, but the set's spheres "
+                "must stay opaque (Mitsuba's ellipsoids cull the hits of rays from inside); "
+                "load the scene with sphere_set=0 to make them transparent "
+                "(raymitsuba/sphere_set.py)")
 
-    def slot(self, shape, active):
-        """The slot of the BSDF of each lane's shape (a ShapePtr, e.g. ``si.shape``: its
-        values are Dr.Jit registry ids)."""
-        return dr.gather(mi.UInt32, self.layout.slot_of_shape,
-                         dr.reinterpret_array(mi.UInt32, shape), active)
+    def slot(self, shape, prim_index, active):
+        """The slot of the surface of each lane's shape and primitive (a ShapePtr, e.g.
+        ``si.shape``: its values are Dr.Jit registry ids; ``si.prim_index``): the shape's,
+        or the primitive's for a shape whose BSDF is a surface set."""
+        shape_id = dr.reinterpret_array(mi.UInt32, shape)
+        slot = dr.gather(mi.UInt32, self.layout.slot_of_shape, shape_id, active)
+        primitives = self.layout.primitives
+        if primitives is None:
+            return slot
+        first = dr.gather(mi.UInt32, primitives.first, shape_id, active)
+        in_set = active & (first != NO_SLOT)
+        return dr.select(in_set, dr.gather(mi.UInt32, primitives.slot, first + prim_index,
+                                           in_set), slot)
 
     def get(self, name, slot, active):
         """The float parameter ``name`` of each lane's slot."""

@@ -175,7 +175,7 @@ class Tracer:
         si = self.intersect(scene, terms.geometry, ray, coherent=(depth == 0))
         hit = si.is_valid()
         surfaces = terms.surfaces
-        slot = surfaces.slot(si.shape, hit)
+        slot = surfaces.slot(si.shape, si.prim_index, hit)
         color = surfaces.base_color(si, slot, hit)
         local = self.shade(scene, terms, si, slot, color, ray)
         local = dr.select(hit, local, terms.background)
@@ -270,7 +270,7 @@ class Tracer:
             # intersection is enough. The next ray starts just past the crossing.
             crossing = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
             crossed = active & crossing.is_valid()
-            slot = surfaces.slot(crossing.shape, crossed)
+            slot = surfaces.slot(crossing.shape, crossing.prim_index, crossed)
             kt = surfaces.get("refractivity", slot, crossed)
             transmittance = dr.select(crossed, transmittance * kt, transmittance)
             onward = crossed & (kt > 0)

@@ -49,7 +49,7 @@ def scene(mitsuba):
 
 def slots_of_shapes(mi, scene, surfaces):
     """The slot of each shape's BSDF, in scene.shapes() order (s0, s1, s2, s3)."""
-    return np.array(surfaces.slot(scene.shapes_dr(), True)).ravel().tolist()
+    return np.array(surfaces.slot(scene.shapes_dr(), mi.UInt32(0), True)).ravel().tolist()
 
 
 def test_one_slot_per_distinct_bsdf(mitsuba, scene):

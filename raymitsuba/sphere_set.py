@@ -1,0 +1,91 @@
+"""The sphere set: many analytic spheres as one Mitsuba shape, and its data layout.
+
+A scene with thousands of spheres would otherwise create a Mitsuba ``sphere`` per object
+(about 40 microseconds of ``mi.load_dict`` each, and an Embree geometry each). Mitsuba's
+``ellipsoids`` shape holds any number of ellipsoids in one object and one Embree
+geometry; with equal scales on the three axes each is an exact sphere. The translator
+(``translate.py``) packs the spheres into it and the Whitted integrator's hit table
+(``plugins/whitted/hits.py``) reads them back; this module is the layout both use.
+
+Which spheres: the analytic ones (a similarity transform without mirroring) whose material
+is opaque (kt = 0) and that do not contain the eye, when a scene has at least
+``RenderOptions.sphere_set`` of them (default 256; 0: never). The restriction is Mitsuba's:
+``ellipsoids`` culls the hits of a ray that starts inside an ellipsoid (it is made for
+volumetric primitives), and only the rays of glass (refraction, shadow rays through it)
+and a camera inside a sphere start there. So a material that draws set spheres must stay
+opaque: the integrator refuses a render where such a material has kt > 0 (a fit of kt
+from 0 on such a scene: load it with ``sphere_set=0``).
+
+The data, per sphere, ten float32 (Mitsuba's order): the centre c (3), the scale (3: the
+radius r three times), the rotation as a unit quaternion (x, y, z, w). The rotation is
+that of the sphere's to-world transform (``to_world = T(c) R S(r)``); it does not change
+the sphere, only its texture coordinates (``uv`` from the object-space point, as for
+Mitsuba's own sphere). ``extent`` is 1 (Mitsuba's default, 3, is for Gaussian kernels).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+FLOATS = 10  # per sphere: centre (3), scale (3), quaternion (4)
+EXTENT = 1.0  # the ellipsoids' ``extent``: the scale is the radius
+
+
+def pack(to_world: np.ndarray) -> np.ndarray:
+    """The set's data (n * FLOATS float32) for the spheres of to-world transforms
+    ``to_world`` (n, 4, 4): a rotation times a positive uniform scale, then a translation."""
+    m = np.asarray(to_world, np.float64).reshape(-1, 4, 4)
+    radius = np.linalg.norm(m[:, :3, 0], axis=1)
+    rotation = m[:, :3, :3] / radius[:, None, None]
+    data = np.empty((len(m), FLOATS), np.float64)
+    data[:, 0:3] = m[:, :3, 3]
+    data[:, 3:6] = radius[:, None]
+    data[:, 6:10] = quaternion(rotation)
+    return data.astype(np.float32).ravel()
+
+
+def unpack(data: np.ndarray):
+    """(centres (n, 3), radii (n,), world-to-object matrices (n, 3, 4)) of the set's data,
+    float64: the inverse of to_world = T(c) R S(r) is S(1/r) R^T T(-c)."""
+    d = np.asarray(data, np.float64).reshape(-1, FLOATS)
+    center, radius = d[:, 0:3], d[:, 3]
+    inverse_linear = np.transpose(rotation(d[:, 6:10]), (0, 2, 1)) / radius[:, None, None]
+    to_object = np.concatenate(
+        [inverse_linear, -np.einsum("nij,nj->ni", inverse_linear, center)[:, :, None]], axis=2)
+    return center, radius, to_object
+
+
+def quaternion(r: np.ndarray) -> np.ndarray:
+    """Unit quaternions (x, y, z, w) of rotation matrices r (n, 3, 3) (the largest of
+    the four |components| first, for accuracy)."""
+    q = np.empty((len(r), 4))
+    trace = np.trace(r, axis1=1, axis2=2)
+    # 4 q_k^2 for k = x, y, z, w, from the diagonal
+    four_sq = np.stack([1 + 2 * r[:, 0, 0] - trace, 1 + 2 * r[:, 1, 1] - trace,
+                        1 + 2 * r[:, 2, 2] - trace, 1 + trace], axis=1)
+    k = np.argmax(four_sq, axis=1)
+    s = 2.0 * np.sqrt(np.maximum(four_sq[np.arange(len(r)), k], 1e-300))  # 4 |q_k|
+    zy, yz = r[:, 2, 1], r[:, 1, 2]
+    xz, zx = r[:, 0, 2], r[:, 2, 0]
+    yx, xy = r[:, 1, 0], r[:, 0, 1]
+    by_largest = {  # (x, y, z, w) * s, for the largest component k
+        0: (s * s / 4, xy + yx, xz + zx, zy - yz),
+        1: (xy + yx, s * s / 4, yz + zy, xz - zx),
+        2: (xz + zx, yz + zy, s * s / 4, yx - xy),
+        3: (zy - yz, xz - zx, yx - xy, s * s / 4),
+    }
+    for which, parts in by_largest.items():
+        rows = k == which
+        q[rows] = np.stack(parts, axis=1)[rows] / s[rows, None]
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def rotation(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) of quaternions (x, y, z, w) (n, 4), normalized first."""
+    q = np.asarray(q, np.float64)
+    x, y, z, w = (q / np.linalg.norm(q, axis=1, keepdims=True)).T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+    ], axis=1)
