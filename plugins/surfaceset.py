@@ -1,35 +1,128 @@
-"""``raysurfaceset``: the surfaces of a shape whose primitives have surfaces of their own.
+"""``raysurfaceset``: the surfaces of a shape whose primitives have surfaces of their own,
+and the table of the materials that only they use.
 
 The sphere set (:mod:`raymitsuba.sphere_set`) is one Mitsuba shape holding many spheres,
 each drawn with the surface of its object; Mitsuba gives a shape one BSDF. This BSDF is
-that one: it names, for each primitive in order, its surface (a ``rayphong`` or
-``raytextured`` BSDF of the scene, by reference: materials stay shared and keep their
-keys ``mat{i}.*``). The Whitted integrator reads it through the surface-set interface
-(``whitted/protocol.py``) and gives each primitive the slot of its surface
-(``whitted/surfaces.py``). It has no ``eval``, like the surfaces it names.
+that one. It holds, for each primitive in order, which of its *surfaces* it has:
+
+* the surfaces shared with other shapes, or textured: references to ``rayphong`` or
+  ``raytextured`` BSDFs of the scene, ``surface_{j}``, j = 0 .. J - 1;
+* the materials that only the set's untextured spheres use (a scene of 10^4 spheres
+  each with its own material has 10^4 of them): not Mitsuba objects but rows of one
+  table, ``materials`` (10 floats a row: color r g b, then ka kd ks n kr kt eta, the
+  order of ``Material.FIELDS``), so loading them costs one array, not 10^4 plugins.
+  Row m is surface J + m, a :class:`TableRow`, with the surface interface
+  (``whitted/protocol.py``) like a ``rayphong``.
+
+Their keys stay ``mat{i}.{field}`` (``material_ids``: i of each row): the set *registers*
+them in a scene's parameters (``register``, called by ``raymitsuba.api``; ``mi.traverse``
+alone does not list them), as Dr.Jit values made then, so that gradients, updates and fits
+work on them as on a ``rayphong``'s (``parameters_changed`` brings the table's host values up
+to date). The Whitted integrator gives each primitive the slot of its surface
+(``whitted/surfaces.py``). Nothing here has an ``eval``, like the surfaces it names.
 
 Parameters:
 
-* ``surface_{k}`` (reference to a surface BSDF), for k = 0 .. n - 1: primitive k's surface.
+* ``surface_{j}`` (reference to a surface BSDF), j = 0 .. J - 1;
+* ``materials`` (TensorXf, M * 10), ``material_ids`` (TensorXf, M): the table (optional);
+* ``surface_of`` (TensorXf, one per primitive): the index of each primitive's surface.
 """
 
+import drjit as dr
 import mitsuba as mi
+import numpy as np
+
+from raymitsuba.model import Material
 
 PREFIX = "surface_"
+FIELDS = Material.FIELDS  # color, then the floats
+COLUMNS = 3 + len(FIELDS) - 1  # a table row: color r g b, then one column per float field
 
 
 class SurfaceSet(mi.BSDF):
     def __init__(self, props):
         super().__init__(props)
-        count = sum(1 for name in props.keys() if name.startswith(PREFIX))
-        # (primitive k's surface; by name, so the order of the properties does not matter)
-        self.surfaces = tuple(props.get(f"{PREFIX}{k}") for k in range(count))
+        count = sum(1 for name in props.keys()
+                    if name.startswith(PREFIX) and name[len(PREFIX):].isdigit())
+        shared = [props.get(f"{PREFIX}{j}") for j in range(count)]
+        table = props.get("materials").numpy().reshape(-1, COLUMNS) if "materials" in props \
+            else np.zeros((0, COLUMNS), np.float32)
+        ids = props.get("material_ids").numpy().astype(np.int64) if "material_ids" in props \
+            else np.zeros(0, np.int64)
+        self.table = np.array(table, np.float32)  # host values by row (kept current)
+        self.material_ids = ids  # the i of each row's key mat{i}
+        self.rows = tuple(TableRow(self, m) for m in range(len(ids)))
+        # The distinct surfaces (shared ones, then the table's rows) and, per primitive, the
+        # index of its surface
+        self.surfaces = tuple(shared) + self.rows
+        self.surface_of = props.get("surface_of").numpy().astype(np.uint32)
         self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.GlossyReflection \
             | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
         self.m_components = [self.m_flags]
 
+    # -- the keys of the table's materials ---------------------------------------------------
+    def register(self, params):
+        """Add ``mat{i}.{field}`` of every row to ``params`` (a SceneParameters), this object
+        as their node; the values are made at the first registration and kept."""
+        params.hierarchy[self] = (None, 0)
+        for m, i in enumerate(self.material_ids):
+            for field in FIELDS:
+                params.properties[f"mat{i}.{field}"] = (self.value(m, field), None, self,
+                                                        mi.ParamFlags.Differentiable)
+
+    def value(self, row, field):
+        """The Dr.Jit value of ``field`` of table row ``row`` (made on first use, then kept
+        as the row's attribute)."""
+        surface = self.rows[row]
+        if getattr(surface, field) is None:
+            values = self.table[row]
+            value = mi.Color3f(*map(float, values[:3])) if field == "color" \
+                else mi.Float(float(values[2 + FIELDS.index(field)]))
+            dr.make_opaque(value)
+            setattr(surface, field, value)
+        return getattr(surface, field)
+
+    def parameters_changed(self, keys=None):
+        """Bring the host table up to date with the values of ``keys`` (``mat{i}.{field}``)."""
+        row_of = {int(i): m for m, i in enumerate(self.material_ids)}
+        for key in keys or ():
+            owner, _, field = key.partition(".")
+            row = row_of.get(int(owner[3:])) if owner[3:].isdigit() else None
+            value = getattr(self.rows[row], field, None) if row is not None else None
+            if value is None:
+                continue
+            dr.make_opaque(value)  # data, not a constant of the kernels
+            if field == "color":
+                self.table[row, :3] = [value.x[0], value.y[0], value.z[0]]
+            else:
+                self.table[row, 2 + FIELDS.index(field)] = value[0]
+
     def traverse(self, callback):
-        pass  # the surfaces' parameters are listed under their own ids
+        pass  # the shared surfaces' parameters are under their own ids; the table: register
 
     def to_string(self):
-        return f"SurfaceSet[{len(self.surfaces)} surfaces]"
+        return f"SurfaceSet[{len(self.surface_of)} primitives, {len(self.material_ids)} materials]"
+
+
+class TableRow:
+    """Row ``row`` of a surface set's table as a surface and its own material (the surface
+    interface of ``whitted/protocol.py``, as a ``rayphong``): no checkerboard, no image
+    texture; its parameters (``color``, ``ambient_mix``, ...) are None until the set's keys
+    are registered, then their Dr.Jit values."""
+
+    checker_size = 0.0
+    image_textures = ()
+
+    def __init__(self, surface_set, row):
+        self.set, self.row = surface_set, row
+        for field in FIELDS:
+            setattr(self, field, None)
+
+    @property
+    def material(self):
+        return self
+
+    @property
+    def host_values(self):
+        values = self.set.table[self.row]
+        return {"color": tuple(values[:3]), **dict(zip(FIELDS[1:], values[3:]))}

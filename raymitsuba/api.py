@@ -36,12 +36,22 @@ class Loaded:
         at the first use and kept: a plain render does not need it, and it visits every
         object of the scene."""
         if self._params is None:
-            from raymitsuba.backend import mitsuba
-
-            self._params = mitsuba().traverse(self.scene)
-            if self.geometry is not None:
-                self.geometry.register(self._params)
+            self._params = self.traverse()
         return self._params
+
+    def traverse(self):
+        """A new ``mi.traverse(scene)`` with the keys that are not Mitsuba objects' own:
+        the geometry and camera keys and the ``mat{i}`` keys of the sphere set's material
+        table (``plugins/surfaceset.py``), registered by their nodes."""
+        from raymitsuba.backend import mitsuba
+
+        params = mitsuba().traverse(self.scene)
+        if self.geometry is not None:
+            self.geometry.register(params)
+        for shape in self.scene.shapes():
+            if hasattr(shape.bsdf(), "register"):  # a surface set's table
+                shape.bsdf().register(params)
+        return params
 
     @property
     def geometry(self):
@@ -117,7 +127,7 @@ def load(source, width=None, height=None, spp=None, max_depth=None, srgb=None, d
 
 def render(loaded: Loaded, spp: int | None = None, params=None):
     """The image as a Dr.Jit TensorXf (H, W, 3), linear. Differentiable w.r.t. ``params``
-    (default: all of ``loaded.params``) through ``mi.render``.
+    (default: all of ``loaded.params``, if it has been used) through ``mi.render``.
 
     Traced in chunks within the loaded ``memory_budget`` and assembled on the host (16384 x
     16384 works: a 3.2 GB tensor); ``loaded.integrator.render_array(loaded.scene)`` gives
@@ -128,10 +138,11 @@ def render(loaded: Loaded, spp: int | None = None, params=None):
     mi = mitsuba()
     import drjit as dr  # after mitsuba(): the variant and libLLVM are chosen there
 
-    if params is None:
+    if params is None and loaded._params is not None:
         params = loaded.params
         # mi.render walks every parameter it is given (8 per material) at each call; with
         # none that has gradients enabled there is nothing to attach: a primal render.
+        # (Not made here when never used: only through it can a gradient have been enabled.)
         if not any(dr.grad_enabled(params[key]) for key in params.keys()):
             params = None
     return mi.render(loaded.scene, params=params, spp=int(spp or loaded.options.spp))

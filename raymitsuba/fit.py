@@ -249,9 +249,7 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     start = {key: to_python(optimizer[key]) for key in keys}  # clamped
     # The steps render and update through the fitted parameters only: Mitsuba's render and
     # update visit every parameter they are given, 8 per material of the scene.
-    fitted = mi.traverse(loaded.scene)
-    if loaded.geometry is not None:  # the geometry and camera keys
-        loaded.geometry.register(fitted)
+    fitted = loaded.traverse()
     fitted.keep([re.escape(key) + "$" for key in keys])
 
     result = FitResult(keys=keys, start=start, fitted=dict(start))

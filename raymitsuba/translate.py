@@ -104,13 +104,14 @@ def translate(model: Scene, options: Options | None = None, **kwargs) -> dict:
              "integrator": {"type": "raywhitted", **options.integrator_properties()},
              "sensor": sensor(model, options, mi),
              "background": {"type": "raybackground", "color": rgb(model.background, mi)}}
-    for material in model.materials:
-        scene[f"mat{material.index}"] = bsdf(material, mi)
-    for light in model.lights:
-        scene[f"light{light.index}"] = emitter(light, mi)
     surfaces = Surfaces(options, mi)
     objects = shapes(model, options, surfaces, mi)
     objects |= mesh_shapes(model, mi)
+    for material in model.materials:
+        if material.index not in surfaces.tabled:
+            scene[f"mat{material.index}"] = bsdf(material, mi)
+    for light in model.lights:
+        scene[f"light{light.index}"] = emitter(light, mi)
     # Textured surfaces reference the materials and are referenced by the shapes.
     return scene | surfaces.dicts | objects
 
@@ -171,6 +172,7 @@ class Surfaces:
         self.options, self.mi = options, mi
         self.ids: dict = {}
         self.dicts: dict = {}
+        self.tabled: set = set()  # the materials held by the sphere set's table (no rayphong)
 
     def id(self, obj: SceneObject) -> str:
         """The id of the BSDF of ``obj``'s surface (made on first use)."""
@@ -278,7 +280,7 @@ def shapes(model, options, surfaces, mi) -> dict:
         out[names.next("sphere", obj.line)] = {"type": "sphere", "to_world": mi.ScalarTransform4f(to_world),
                                      "bsdf": {"type": "ref", "id": surface_id}}
     if grouped:
-        out["spheres"] = sphere_set_shape(grouped, mi)
+        out["spheres"] = sphere_set_shape(grouped, model, surfaces, mi)
     out |= {f"triangles_{k}": mesh for k, mesh in enumerate(triangles)}
     meshes = quadric_meshes(tessellated, model, options, mi)
     return out | {f"quadrics_{k}": mesh for k, mesh in enumerate(meshes)}
@@ -334,16 +336,41 @@ def set_members(spheres, model, options):
             [s for s, k in zip(spheres, member) if k])
 
 
-def sphere_set_shape(members, mi) -> dict:
+def sphere_set_shape(members, model, surfaces, mi) -> dict:
     """The shape of the sphere set ([(object, to_world rows, surface id)]): Mitsuba's
-    ``ellipsoids`` holding them in this order, its BSDF a ``raysurfaceset`` naming each
-    one's surface (``surface_{k}`` for the k-th)."""
+    ``ellipsoids`` holding them in this order, its BSDF a ``raysurfaceset`` giving each
+    one's surface: a reference to a shared or textured surface, or a row of its table of
+    the materials that only its untextured spheres use (recorded in ``surfaces.tabled``:
+    they get no ``rayphong`` of their own)."""
     data = sphere_set.pack(np.array([to_world for _, to_world, _ in members], np.float64))
-    surfaces = {"type": "raysurfaceset"} | {
-        f"surface_{k}": {"type": "ref", "id": surface_id}
-        for k, (_, _, surface_id) in enumerate(members)}
+    member_ids = {id(obj) for obj, _, _ in members}
+    used_elsewhere = {obj.material for obj in model.objects
+                      if id(obj) not in member_ids or obj.texture is not None} | \
+        {mesh.material for mesh in model.meshes}
+    shared, rows = {}, {}  # surface id -> its index among the shared; material -> its row
+    for obj, _, surface_id in members:
+        if surface_id == f"mat{obj.material}" and obj.material not in used_elsewhere:
+            rows.setdefault(obj.material, len(rows))
+        else:
+            shared.setdefault(surface_id, len(shared))
+    surface_of = np.array([rows[obj.material] + len(shared) if obj.material in rows
+                           else shared[surface_id] for obj, _, surface_id in members], np.float32)
+    table = np.array([material_row(model.materials[i]) for i in rows], np.float32)
+    surfaces.tabled |= {model.materials[i].index for i in rows}
+    bsdf = {"type": "raysurfaceset", "surface_of": mi.TensorXf(surface_of)} | {
+        f"surface_{j}": {"type": "ref", "id": surface_id} for surface_id, j in shared.items()}
+    if rows:
+        bsdf |= {"materials": mi.TensorXf(table.ravel()),
+                 "material_ids": mi.TensorXf(np.array([model.materials[i].index for i in rows],
+                                                      np.float32))}
     return {"type": "ellipsoids", "data": mi.TensorXf(data), "extent": sphere_set.EXTENT,
-            "bsdf": surfaces}
+            "bsdf": bsdf}
+
+
+def material_row(material: Material) -> list:
+    """A material as a row of the surface set's table: color r g b, then the other fields
+    in the order of ``Material.FIELDS``."""
+    return list(material.color) + [getattr(material, name) for name in Material.FIELDS[1:]]
 
 
 def matrices(objs) -> np.ndarray:

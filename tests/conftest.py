@@ -9,6 +9,8 @@ import sys
 import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))  # tests/support.py, tests/reference_tracer.py
+# test_gradients.derivatives (the finite-difference check) is shared by other rooms' tests
+sys.path.insert(1, os.path.join(os.path.dirname(__file__), "plugins", "whitted"))
 
 
 @pytest.fixture(scope="session")

@@ -99,9 +99,16 @@ def test_a_scene_with_enough_opaque_spheres_draws_them_as_one_shape(translate):
     members = len(np.asarray(shape["data"])) // 10
     # the 30 glass spheres stay Mitsuba spheres; the others are the set, each with its surface
     assert (len(spheres), members) == (30, SET_MIN + 40 - 30)
+    # each member has a material of its own: all of them rows of the set's table, with their
+    # keys' numbers (material 1 is glass), and no rayphong of their own
     surfaces = shape["bsdf"]
-    assert surfaces["type"] == "raysurfaceset" and len(surfaces) == members + 1
-    assert surfaces["surface_0"] == {"type": "ref", "id": "mat2"}  # material 1 is glass
+    assert surfaces["type"] == "raysurfaceset" and "surface_0" not in surfaces
+    np.testing.assert_array_equal(np.asarray(surfaces["surface_of"]), np.arange(members))
+    ids = np.asarray(surfaces["material_ids"])
+    assert len(ids) == members and ids[0] == 2 and 11 not in ids  # (mat11: glass)
+    assert "mat2" not in d and "mat11" in d and "mat0" in d
+    assert np.asarray(surfaces["materials"]).reshape(-1, 10)[0, 3:].tolist() == \
+        pytest.approx([0.2, 0.7, 0.3, 30, 0.1, 0, 1.4])
 
 
 def test_few_spheres_a_sphere_around_the_eye_and_sphere_set_0_stay_single_spheres(translate):
@@ -174,3 +181,42 @@ def test_moving_a_set_sphere_is_refused_but_the_camera_moves(mitsuba):
     loaded.params["camera.eye"] = loaded.params["camera.eye"] + mitsuba.Point3f(0.5, 0, 0)
     loaded.params.update()
     assert np.abs(np.array(raymitsuba.render(loaded)) - before).max() > 0.05
+
+
+@pytest.fixture(scope="module")
+def crowd(mitsuba):
+    """A sphere set whose spheres' materials are rows of its table (and a glass sphere and
+    the floor beside it, with rayphong materials)."""
+    import raymitsuba
+
+    loaded = raymitsuba.load(sphere_grid(SET_MIN + 4, glass_every=200, mirror_every=4),
+                             width=96, height=72)  # (a sphere spans about 3 pixels)
+    assert "spheres" in loaded.scene_dict and "mat130" not in loaded.scene_dict
+    return loaded
+
+
+@pytest.mark.parametrize("key", ["mat130.color", "mat130.diffuse_mix", "mat126.reflectivity"])
+def test_a_table_materials_gradient_matches_finite_differences(mitsuba, crowd, key):
+    """Keys of the table's rows (sphere 129 near the centre; 125 a mirror) are parameters as
+    a rayphong's are: FD within 1% (as test_gradients), forward and reverse alike."""
+    from test_gradients import derivatives
+
+    finite, reverse, forward = derivatives(mitsuba, crowd, key, seed=5)
+    assert abs(finite) > 1e-3
+    assert reverse == pytest.approx(finite, rel=1e-2)
+    assert forward == pytest.approx(reverse, rel=1e-5, abs=1e-6)
+
+
+def test_a_fit_of_a_table_material_recovers_it(mitsuba):
+    import raymitsuba
+    from raymitsuba import fit as F
+
+    text = sphere_grid(SET_MIN)
+    target = np.array(raymitsuba.render(raymitsuba.load(text, width=96, height=72)))
+    lines = text.splitlines()
+    where = [n for n, line in enumerate(lines) if line.startswith("material")][129]  # mat130
+    lines[where] = lines[where].replace(" 0.2 0.7 ", " 0.2 0.4 ")
+    loaded = raymitsuba.load("\n".join(lines) + "\n", width=96, height=72)
+    assert "spheres" in loaded.scene_dict and "mat130" not in loaded.scene_dict
+    result = F.fit(loaded, target, ["mat130.diffuse_mix"], iters=60, lr=0.05)
+    assert result.fitted["mat130.diffuse_mix"] == pytest.approx(0.7, abs=5e-3)

@@ -14,6 +14,7 @@ provide its part; the names they check are the classes' own (:func:`members`).
 
 from __future__ import annotations
 
+import functools
 import inspect
 from collections.abc import Mapping
 from typing import Protocol, runtime_checkable
@@ -39,7 +40,8 @@ class SurfaceSet(Protocol):
     """The BSDF of a shape whose primitives each have a surface (``raysurfaceset``: the
     sphere set). Its surfaces must stay opaque (kt = 0; ``surfaces.py`` checks)."""
 
-    surfaces: tuple  # of Surface: primitive k's surface, for each primitive k of the shape
+    surfaces: tuple  # of Surface: the distinct surfaces of the primitives
+    surface_of: object  # numpy uint32, one per primitive: the index of its surface
 
 
 class SurfaceMaterial(Protocol):
@@ -75,6 +77,7 @@ class Background(Protocol):
     background_color: object  # mi.Color3f
 
 
+@functools.cache  # (read once per protocol: a scene checks thousands of surfaces)
 def members(protocol):
     """The names ``protocol`` declares, in order: its attributes, then its methods."""
     methods = [name for name, value in vars(protocol).items()

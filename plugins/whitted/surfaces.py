@@ -133,13 +133,17 @@ def distinct_bsdfs(shapes, shape_ids):
     bsdfs, index_of_shape, sets = {}, np.zeros(len(shapes), np.int64), []
     for i, shape in enumerate(shapes):
         bsdf = shape.bsdf()
-        if isinstance(bsdf, SurfaceSet):  # a surface per primitive: their indices, in order
-            sets.append((i, [bsdfs.setdefault(id(member), (len(bsdfs), member, shape))[0]
-                             for member in bsdf.surfaces]))
+        if isinstance(bsdf, SurfaceSet):  # a surface per primitive: its index, per primitive
+            indices = np.array([bsdfs.setdefault(id(surface), (len(bsdfs), surface, shape))[0]
+                                for surface in bsdf.surfaces], np.int64)
+            sets.append((i, indices[bsdf.surface_of]))
             continue
         index_of_shape[i] = bsdfs.setdefault(id(bsdf), (len(bsdfs), bsdf, shape))[0]
     found = list(bsdfs.values())
-    registry_ids = [dr.reinterpret_array(mi.UInt32, mi.BSDFPtr(bsdf))[0] for _, bsdf, _ in found]
+    # Mitsuba's BSDFs by registry id, then the surfaces that are not Mitsuba objects (a
+    # surface set's table rows) in the order found
+    registry_ids = [dr.reinterpret_array(mi.UInt32, mi.BSDFPtr(bsdf))[0]
+                    if isinstance(bsdf, mi.BSDF) else 0xFFFFFFFF for _, bsdf, _ in found]
     order = np.argsort(registry_ids, kind="stable")
     slot_of_index = np.empty(len(found), np.uint32)
     slot_of_index[order] = np.arange(len(found), dtype=np.uint32)
@@ -161,7 +165,7 @@ class PrimitiveSlots:
         slots, start = [], 0
         for i, indices in sets:
             first[shape_ids[i]] = start
-            slots.append(slot_of_index[np.asarray(indices, np.int64)])
+            slots.append(slot_of_index[indices])
             start += len(indices)
         by_row = np.concatenate(slots)
         self.first = jit_array(mi.UInt32, first)
@@ -222,7 +226,7 @@ def host_parameters(layout):
 
 def attached_values(materials):
     """(Parameter name, material index, value) of every material value whose gradient is
-    enabled."""
+    enabled (a value that is None: a table row's, not registered)."""
     values_of, attached = attrgetter(*SURFACE_PARAMETERS), []
     for m, values in enumerate(map(values_of, materials)):
         if dr.grad_enabled(values):  # (one call: most materials have none)
