@@ -150,8 +150,16 @@ def distinct_bsdfs(shapes, shape_ids):
     table = np.zeros(max(int(shape_ids.max()) + 1, MIN_ROWS), dtype=np.uint32)
     table[shape_ids] = slot_of_index[index_of_shape]
     primitives = PrimitiveSlots(sets, shape_ids, slot_of_index, len(table)) if sets else None
-    return ([check_surface(found[i][1], found[i][2]) for i in order],
-            jit_array(mi.UInt32, table), primitives)
+    # (a surface that is no Mitsuba object -- a table row -- is checked once per class)
+    checked = set()
+    surfaces = []
+    for i in order:
+        _, surface, shape = found[i]
+        if isinstance(surface, mi.BSDF) or type(surface) not in checked:
+            check_surface(surface, shape)
+            checked.add(type(surface))
+        surfaces.append(surface)
+    return surfaces, jit_array(mi.UInt32, table), primitives
 
 
 class PrimitiveSlots:
@@ -229,7 +237,7 @@ def attached_values(materials):
     enabled (a value that is None: a table row's, not registered)."""
     values_of, attached = attrgetter(*SURFACE_PARAMETERS), []
     for m, values in enumerate(map(values_of, materials)):
-        if dr.grad_enabled(values):  # (one call: most materials have none)
+        if values[0] is not None and dr.grad_enabled(values):  # (one call: most have none)
             attached += [(name, m, value) for name, value in zip(SURFACE_PARAMETERS, values)
                          if dr.grad_enabled(value)]
     return attached
