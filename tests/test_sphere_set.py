@@ -220,3 +220,14 @@ def test_a_fit_of_a_table_material_recovers_it(mitsuba):
     assert "spheres" in loaded.scene_dict and "mat130" not in loaded.scene_dict
     result = F.fit(loaded, target, ["mat130.diffuse_mix"], iters=60, lr=0.05)
     assert result.fitted["mat130.diffuse_mix"] == pytest.approx(0.7, abs=5e-3)
+
+
+def test_kernels_do_not_depend_on_the_number_of_spheres_in_the_set(mitsuba):
+    """As tests/test_scale.py for single spheres: 300 then 1,200 spheres in the set, each
+    with its own material, render with the same kernels, all of the second from the cache."""
+    from test_scale import kernels_of_a_render
+
+    few = kernels_of_a_render(sphere_grid(300, mirror_every=4))
+    many = kernels_of_a_render(sphere_grid(1200, mirror_every=4))
+    assert [ops for ops, _ in many] == [ops for ops, _ in few]
+    assert all(hit for _, hit in many)

@@ -14,7 +14,11 @@ or texture of the scene, so no kernel's size depends on how many there are:
 * slots: the distinct BSDFs of all shapes, in increasing registry id, and a table
   from shape id (read in one vectorized call) to slot; a Python pass over the shapes
   and the distinct surfaces (no JIT work) reads their materials, checker sizes and
-  image textures (the ``Layout``, reused while the shapes are the same);
+  image textures (the ``Layout``, reused while the shapes are the same). A shape whose
+  BSDF is a *surface set* (``protocol.SurfaceSet``: the sphere set, whose spheres each
+  have their surface, some of them rows of its material table that are no Mitsuba
+  objects) gives each primitive the slot of its surface: ``PrimitiveSlots``, by shape
+  id the first row of a table by primitive;
 * parameter values: the materials' ``host_values`` (kept on the host by each material),
   assembled by name into one numpy array per parameter and uploaded as one array. A value
   whose gradient is enabled is then *scattered* into the slots of its material (one
