@@ -24,6 +24,14 @@
    as many pixels within 8/255 of a 256-sample render as 6 x 6 for every refined pixel,
    with two thirds of its samples (README, "Anti-aliasing").
 
+4. A checkerboard seen directly is averaged over each sample's *footprint* (its share of
+   the pixel: the whole pixel for the first pass and the corners, 1/n of it for an n x n
+   grid), from the camera rays' differentials (``camera.sample``, ``hits.uv_footprint``,
+   ``checkerboard.checker_filtered``). Squares smaller than a pixel towards the horizon
+   are then a smooth grey rather than noise no affordable grid resolves: on the
+   benchmark's scene 97.7 % of the pixels come within 2/255 of a 256-sample render
+   (88.7 % with point samples), and fewer pixels need refining.
+
 Each pixel's value is the box-filtered average of its samples: those of its grid if it
 is refined, its first pass's otherwise (the corners only decide). The choice depends only
 on the values of a pixel's samples and its neighbours', so it is the same on every run
@@ -109,8 +117,9 @@ class CornerJob:
         self.first = top * (width + 1)  # the first corner's number
         self.count = (bottom - top + 1) * (width + 1)  # how many corners
 
-    def rays(self, sensor, start, count):
-        return corner_rays(sensor, self.width, self.height, self.first + start, count)
+    def rays(self, sensor, start, count, footprint=False):
+        return corner_rays(sensor, self.width, self.height, self.first + start, count,
+                           footprint)
 
 
 def trace_corners(chunker, width, height, top, bottom):

@@ -37,12 +37,14 @@ def stratum_offset(s, spp):
     return mi.Point2f(x, y - dr.floor(y))
 
 
-def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None):
+def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None, footprint=False):
     """Camera rays, pixel-major (all samples of a pixel, then the next pixel's); row 0 is the top.
 
     Of the pixels ``first`` .. ``first + count - 1`` (default: the whole image), or of the
     pixels listed in ``pixels`` (a UInt32 array, in its order). A pixel's rays are the same
-    whichever batch it is part of: the image does not depend on how it is split."""
+    whichever batch it is part of: the image does not depend on how it is split.
+    ``footprint``: ray differentials (``mi.RayDifferential3f``) spanning each sample's share
+    of its pixel (1 / sqrt(spp) of a pixel in x and in y: see :func:`sample`)."""
     if pixels is None:
         count = width * height - first if count is None else count
     else:
@@ -59,20 +61,33 @@ def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None):
     row = pixel // width
     film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
                           (mi.Float(row) + offset.y) / height)
-    ray, _ = sensor.sample_ray(time=0.0, sample1=0.5, sample2=film_pos, sample3=mi.Point2f(0.5))
-    return mi.Ray3f(ray)
+    return sample(sensor, film_pos, spp ** -0.5 if footprint else None)
 
 
-def corner_rays(sensor, width, height, first, count):
+def corner_rays(sensor, width, height, first, count, footprint=False):
     """One camera ray through each of the pixel corners ``first`` .. ``first + count - 1``
-    (numbered as in the module docstring) of a ``width`` x ``height`` image."""
+    (numbered as in the module docstring) of a ``width`` x ``height`` image (``footprint``:
+    with ray differentials a pixel wide)."""
     corner = dr.arange(mi.UInt32, count) + dr.opaque(mi.UInt32, first)
     row = corner // (width + 1)
     jitter = corner_jitter(corner)
     film_pos = mi.Point2f((mi.Float(corner - row * (width + 1)) + jitter.x) / width,
                           (mi.Float(row) + jitter.y) / height)
-    ray, _ = sensor.sample_ray(time=0.0, sample1=0.5, sample2=film_pos, sample3=mi.Point2f(0.5))
-    return mi.Ray3f(ray)
+    return sample(sensor, film_pos, 1.0 if footprint else None)
+
+
+def sample(sensor, film_pos, footprint=None):
+    """The camera ray through ``film_pos``; with ``footprint`` (pixels), a
+    ``mi.RayDifferential3f`` whose offset rays are that far in x and in y (the sample's
+    footprint: anti-aliasing's filtered checkerboard reads it)."""
+    if footprint is None:
+        ray, _ = sensor.sample_ray(time=0.0, sample1=0.5, sample2=film_pos,
+                                   sample3=mi.Point2f(0.5))
+        return mi.Ray3f(ray)
+    ray, _ = sensor.sample_ray_differential(time=0.0, sample1=0.5, sample2=film_pos,
+                                            sample3=mi.Point2f(0.5))
+    ray.scale_differential(footprint)
+    return ray
 
 
 def corner_jitter(corner):

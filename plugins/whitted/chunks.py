@@ -57,12 +57,15 @@ class Job:
         self.count = (len(self.pixels) if pixels is not None  # how many pixels
                       else (width * height - first if count is None else count))
 
-    def rays(self, sensor, start, count):
-        """Camera rays of the job's pixels start .. start + count - 1."""
+    def rays(self, sensor, start, count, footprint=False):
+        """Camera rays of the job's pixels start .. start + count - 1 (``footprint``: with
+        their samples' footprints, see camera.camera_rays)."""
         if self.pixels is None:
-            return camera_rays(sensor, self.width, self.height, self.spp, self.first + start, count)
+            return camera_rays(sensor, self.width, self.height, self.spp, self.first + start,
+                               count, footprint=footprint)
         return camera_rays(sensor, self.width, self.height, self.spp,
-                           pixels=mi.UInt32(self.pixels[start:start + count]))
+                           pixels=mi.UInt32(self.pixels[start:start + count]),
+                           footprint=footprint)
 
     def pixel_index(self, start, count):
         """The image's pixel numbers of the job's pixels start .. start + count - 1 (UInt32)."""
@@ -144,12 +147,15 @@ class Chunker:
     def _trace(self, job, start, count, ad, max_rays):
         if ad:  # terms of its own: each chunk's adjoint pass consumes its graph
             with dr.resume_grad():
-                return self.tracer.trace(self.scene, job.rays(self.sensor, start, count),
+                return self.tracer.trace(self.scene, self._rays(job, start, count),
                                          self.tracer.scene_terms(self.scene), max_rays)
         if self.terms is None:
             self.terms = self.tracer.scene_terms(self.scene)
-        return self.tracer.trace(self.scene, job.rays(self.sensor, start, count), self.terms,
+        return self.tracer.trace(self.scene, self._rays(job, start, count), self.terms,
                                  max_rays)
+
+    def _rays(self, job, start, count):
+        return job.rays(self.sensor, start, count, self.tracer.footprint)
 
 
 def probe(tracer, scene, sensor, width, height, spp, terms):

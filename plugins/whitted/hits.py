@@ -287,6 +287,42 @@ class HitTable:
         si.wi = si.to_local(-ray.d)
         return si
 
+    def uv_footprint(self, si, ray, active):
+        """(duv_dx, duv_dy): the texture-space vectors from each mesh hit's uv to those where
+        the offset rays of ``ray`` (a RayDifferential3f) meet the hit face's plane: a
+        sample's footprint (zero off meshes)."""
+        shape_id = dr.reinterpret_array(mi.UInt32, si.shape)
+        valid = active & (shape_id < self.size)
+        kind = dr.gather(mi.UInt32, self.kind, shape_id, valid)
+        mesh = valid & ((kind & MESH) != 0)
+        if not self.has_meshes:
+            return mi.Vector2f(0.0), mi.Vector2f(0.0)
+        row = dr.gather(mi.UInt32, self.first, shape_id, mesh)
+        vertex, (p0, p1, p2) = self.corners(row, si.prim_index, mesh)
+        n = dr.cross(p1 - p0, p2 - p0)
+        footprint = []
+        for o, d in ((ray.o_x, ray.d_x), (ray.o_y, ray.d_y)):
+            t = dr.dot(n, p0 - o) / dr.dot(n, d)
+            uv = self.uv_at(kind, vertex, (p0, p1, p2), o + t * d, mesh)
+            footprint.append(dr.select(mesh, mi.Vector2f(uv - si.uv), 0.0))
+        return tuple(footprint)
+
+    def uv_at(self, kind, vertex, corners, p, mesh):
+        """The texture coordinates at the point ``p`` of each lane's face plane (its corners'
+        indices ``vertex`` and positions ``corners``), as mesh_hit interpolates them."""
+        p0, p1, p2 = corners
+        e1, e2, rel = p1 - p0, p2 - p0, p - p0
+        a11, a12, a22 = dr.dot(e1, e1), dr.dot(e1, e2), dr.dot(e2, e2)
+        r1, r2 = dr.dot(e1, rel), dr.dot(e2, rel)
+        inv = dr.rcp(a11 * a22 - a12 * a12)
+        b1, b2 = (a22 * r1 - a12 * r2) * inv, (a11 * r2 - a12 * r1) * inv
+        uv = mi.Point2f(b1, b2)
+        if self.has_texcoords:
+            textured = mesh & ((kind & TEXCOORDS) != 0)
+            uv0, uv1, uv2 = (dr.gather(mi.Point2f, self.texcoords, v, textured) for v in vertex)
+            uv = dr.select(textured, dr.fma(uv2, b2, dr.fma(uv1, b1, uv0 * (1.0 - b1 - b2))), uv)
+        return uv
+
     def corners(self, row, prim_index, mesh):
         """(face vertex indices, positions) of each lane's hit face."""
         face = (row + prim_index) * 3

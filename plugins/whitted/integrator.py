@@ -67,7 +67,7 @@ class Whitted(mi.CppADIntegrator):
         options = RenderOptions.from_properties(props)  # defaults, ranges: raymitsuba.options
         # traces the ray trees (and keeps the scene tables' caches across renders)
         self.tracer = Tracer(options.max_depth, options.max_shadow_crossings, options.bailout,
-                             options.ray_offset_scale)
+                             options.ray_offset_scale, footprint=bool(options.aa))
         self.aa = options.aa or 0.0  # the adaptive anti-aliasing threshold (0: off)
         self.memory_budget = options.memory_budget  # bytes one chunk's ray tree may take
         # seconds of estimated render time past which a render is refused (0: no limit)

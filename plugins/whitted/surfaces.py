@@ -41,7 +41,7 @@ import numpy as np
 from .arrays import jit_array
 from .hits import HitTable, shape_ids
 from .protocol import SURFACE_PARAMETERS, SurfaceSet, check_emitter, check_surface
-from ..checkerboard import checker
+from ..checkerboard import checker, checker_filtered
 
 NO_SLOT = 0xFFFFFFFF  # a slot index that names no surface (e.g. an unused crossing record)
 # Every table has at least this many rows: Dr.Jit folds a gather from a one-element array
@@ -304,9 +304,11 @@ class Surfaces:
         """The float parameter ``name`` of each lane's slot."""
         return dr.gather(mi.Float, getattr(self, name), slot, active)
 
-    def base_color(self, si, slot, active):
+    def base_color(self, si, slot, active, duv=None):
         """C at each hit: the material's color times the surface's image textures (in
-        order), times its checkerboard."""
+        order), times its checkerboard; ``duv``: (duv_dx, duv_dy), each sample's footprint
+        in texture space (anti-aliasing's camera rays), over which the checkerboard is
+        averaged (``checker_filtered``), or None: its value at the point."""
         layout = self.layout
         color = dr.gather(mi.Color3f, self.color, slot, active)
         for texture_of_slot in layout.texture_of_slot:
@@ -317,5 +319,7 @@ class Surfaces:
         if layout.checker_size is not None:
             size = dr.gather(mi.Float, layout.checker_size, slot, active)
             mask = active & (size > 0)
-            color = dr.select(mask, color * checker(si.uv, dr.select(mask, size, 1.0)), color)
+            size = dr.select(mask, size, 1.0)
+            board = checker(si.uv, size) if duv is None else checker_filtered(si.uv, size, *duv)
+            color = dr.select(mask, color * board, color)
         return color

@@ -117,8 +117,12 @@ class Tracer:
     epsilon off the surface (1: ``si.spawn_ray`` itself).
     """
 
-    def __init__(self, max_depth, max_shadow_crossings, bailout, offset_scale=1.0):
+    def __init__(self, max_depth, max_shadow_crossings, bailout, offset_scale=1.0,
+                 footprint=False):
         self.max_depth = max_depth  # bounces after the first generation
+        # whether camera rays carry their samples' footprints (anti-aliasing): a checkerboard
+        # seen directly is then averaged over each sample's footprint (checker_filtered)
+        self.footprint = footprint
         # secondary and shadow rays start this many ray epsilons off the surface (see spawn_ray)
         self.offset_scale = offset_scale
         self.max_shadow_crossings = max_shadow_crossings  # past this many, a shadow ray is blocked
@@ -176,7 +180,11 @@ class Tracer:
         hit = si.is_valid()
         surfaces = terms.surfaces
         slot = surfaces.slot(si.shape, si.prim_index, hit)
-        color = surfaces.base_color(si, slot, hit)
+        duv = None  # a camera sample's footprint in texture space, for the checkerboard
+        if isinstance(ray, mi.RayDifferential3f) and surfaces.layout.checker_size is not None \
+                and terms.geometry.supported:
+            duv = terms.geometry.uv_footprint(si, ray, hit)
+        color = surfaces.base_color(si, slot, hit, duv)
         local = self.shade(scene, terms, si, slot, color, ray)
         local = dr.select(hit, local, terms.background)
         if not children:

@@ -212,3 +212,36 @@ def test_the_refinement_counts_in_the_time_guard(mi):
     with pytest.raises(guards.BudgetError, match="--time-limit"):
         integrator.render_array(loaded.scene)
 
+
+
+RECEDING = """\
+eye 0 1.2 4
+lookat 0 0.6 -10
+fov 45
+background 0.4 0.6 0.9
+light 1 1 1 directional -1 -2 -1
+light 0.2 0.2 0.2 ambient
+material 0.9 0.9 0.9  0.2 0.8 0 1  0 0 1
+checkerboard 0.5
+plane
+"""
+
+
+def test_a_receding_checkerboard_is_averaged_over_each_samples_footprint(mi):
+    """A checkered floor to the horizon, where squares shrink below a pixel: with --aa each
+    camera sample sees the board averaged over its footprint (checker_filtered, the
+    footprint from ray differentials), so the image is closer to a 4096-sample render than
+    uniform 256 samples are (measured: mean error 0.47/255 against 1.21/255; 99.8 % of the
+    pixels within 8/255 against 97.3 %)."""
+    import raymitsuba
+    from support import render_ray
+
+    width, height = 64, 48
+    q = lambda image: np.clip(image, 0.0, 1.0)  # noqa: E731 (as an 8-bit image would)
+    reference = q(render_ray(RECEDING, width, height, spp=4096))
+    aa = q(np.array(raymitsuba.render(raymitsuba.load(RECEDING, width=width, height=height,
+                                                         aa=0.02))))
+    dense = q(render_ray(RECEDING, width, height, spp=256))
+    error, dense_error = np.abs(aa - reference), np.abs(dense - reference)
+    assert error.mean() < 0.5 * dense_error.mean()
+    assert (error.max(axis=-1) <= 8 / 255).mean() >= 0.995
