@@ -110,7 +110,7 @@ class RenderOptions:
     aa: Optional[float] = option(
         None, "Adaptive anti-aliasing, the way to make an image to look at: pixels whose "
               "centre and four corners differ by more than THRESHOLD (linear), and pixels "
-              "between two such pixels, are traced again with a 2x2 to 6x6 grid by the "
+              "between two such pixels, are traced again with a 2x2 to 12x12 grid by the "
               "contrast.",
         INTEGRATOR, float, unset="off", low=0, low_open=True, metavar="[THRESHOLD]",
         flag_value=0.02)
