@@ -10,7 +10,8 @@ that one. It holds, for each primitive in order, which of its *surfaces* it has:
 * the materials that only the set's untextured spheres use (a scene of 10^4 spheres
   each with its own material has 10^4 of them): not Mitsuba objects but rows of one
   table, ``materials`` (10 floats a row: color r g b, then ka kd ks n kr kt eta, the
-  order of ``Material.FIELDS``), so loading them costs one array, not 10^4 plugins.
+  order of ``Material.FIELDS``: ``raymitsuba.sphere_set.material_row``), so loading them
+  costs one array, not 10^4 plugins.
   Row m is surface J + m, a :class:`TableRow`, with the surface interface
   (``whitted/protocol.py``) like a ``rayphong``.
 
@@ -33,10 +34,10 @@ import mitsuba as mi
 import numpy as np
 
 from raymitsuba.model import Material
+from raymitsuba.sphere_set import MATERIAL_COLUMNS, material_column
 
 PREFIX = "surface_"
 FIELDS = Material.FIELDS  # color, then the floats
-COLUMNS = 3 + len(FIELDS) - 1  # a table row: color r g b, then one column per float field
 
 
 class SurfaceSet(mi.BSDF):
@@ -45,8 +46,8 @@ class SurfaceSet(mi.BSDF):
         count = sum(1 for name in props.keys()
                     if name.startswith(PREFIX) and name[len(PREFIX):].isdigit())
         shared = [props.get(f"{PREFIX}{j}") for j in range(count)]
-        table = props.get("materials").numpy().reshape(-1, COLUMNS) if "materials" in props \
-            else np.zeros((0, COLUMNS), np.float32)
+        table = props.get("materials").numpy().reshape(-1, MATERIAL_COLUMNS) \
+            if "materials" in props else np.zeros((0, MATERIAL_COLUMNS), np.float32)
         ids = props.get("material_ids").numpy().astype(np.int64) if "material_ids" in props \
             else np.zeros(0, np.int64)
         self.table = np.array(table, np.float32)  # host values by row (kept current)
@@ -75,9 +76,9 @@ class SurfaceSet(mi.BSDF):
         as the row's attribute)."""
         surface = self.rows[row]
         if getattr(surface, field) is None:
-            values = self.table[row]
-            value = mi.Color3f(*map(float, values[:3])) if field == "color" \
-                else mi.Float(float(values[2 + FIELDS.index(field)]))
+            values = self.table[row, material_column(field)]
+            value = mi.Color3f(*map(float, values)) if field == "color" \
+                else mi.Float(float(values))
             dr.make_opaque(value)
             setattr(surface, field, value)
         return getattr(surface, field)
@@ -92,10 +93,8 @@ class SurfaceSet(mi.BSDF):
             if value is None:
                 continue
             dr.make_opaque(value)  # data, not a constant of the kernels
-            if field == "color":
-                self.table[row, :3] = [value.x[0], value.y[0], value.z[0]]
-            else:
-                self.table[row, 2 + FIELDS.index(field)] = value[0]
+            self.table[row, material_column(field)] = \
+                [value.x[0], value.y[0], value.z[0]] if field == "color" else value[0]
 
     def traverse(self, callback):
         pass  # the shared surfaces' parameters are under their own ids; the table: register
@@ -125,4 +124,5 @@ class TableRow:
     @property
     def host_values(self):
         values = self.set.table[self.row]
-        return {"color": tuple(values[:3]), **dict(zip(FIELDS[1:], values[3:]))}
+        return {field: tuple(values[material_column(field)]) if field == "color"
+                else values[material_column(field)] for field in FIELDS}

@@ -7,6 +7,9 @@ geometry; with equal scales on the three axes each is an exact sphere. The trans
 (``translate.py``) packs the spheres into it and the Whitted integrator's hit table
 (``plugins/whitted/hits.py``) reads them back; this module is the layout both use.
 
+The set's BSDF (``raysurfaceset``) holds a table of the materials only its spheres use, a
+row each (``material_row``).
+
 Which spheres: the analytic ones (a similarity transform without mirroring) whose material
 is opaque (kt = 0) and that do not contain the eye, when a scene has at least
 ``RenderOptions.sphere_set`` of them (default 256; 0: never). The restriction is Mitsuba's:
@@ -27,8 +30,24 @@ from __future__ import annotations
 
 import numpy as np
 
+from raymitsuba.model import Material
+
 FLOATS = 10  # per sphere: centre (3), scale (3), quaternion (4)
 EXTENT = 1.0  # the ellipsoids' ``extent``: the scale is the radius
+
+# A row of the set's material table (``plugins/surfaceset.py``): the color r g b, then the
+# other fields of ``Material.FIELDS`` in their order.
+MATERIAL_COLUMNS = 3 + len(Material.FIELDS) - 1
+
+
+def material_row(material: Material) -> list:
+    """``material`` as a row of the set's material table."""
+    return list(material.color) + [getattr(material, name) for name in Material.FIELDS[1:]]
+
+
+def material_column(field: str):
+    """Where ``field`` is in a row of the material table: a slice (``color``) or an index."""
+    return slice(0, 3) if field == "color" else 2 + Material.FIELDS.index(field)
 
 
 def pack(to_world: np.ndarray) -> np.ndarray:

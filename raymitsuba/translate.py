@@ -355,7 +355,7 @@ def sphere_set_shape(members, model, surfaces, mi) -> dict:
             shared.setdefault(surface_id, len(shared))
     surface_of = np.array([rows[obj.material] + len(shared) if obj.material in rows
                            else shared[surface_id] for obj, _, surface_id in members], np.float32)
-    table = np.array([material_row(model.materials[i]) for i in rows], np.float32)
+    table = np.array([sphere_set.material_row(model.materials[i]) for i in rows], np.float32)
     surfaces.tabled |= {model.materials[i].index for i in rows}
     bsdf = {"type": "raysurfaceset", "surface_of": mi.TensorXf(surface_of)} | {
         f"surface_{j}": {"type": "ref", "id": surface_id} for surface_id, j in shared.items()}
@@ -365,12 +365,6 @@ def sphere_set_shape(members, model, surfaces, mi) -> dict:
                                                       np.float32))}
     return {"type": "ellipsoids", "data": mi.TensorXf(data), "extent": sphere_set.EXTENT,
             "bsdf": bsdf}
-
-
-def material_row(material: Material) -> list:
-    """A material as a row of the surface set's table: color r g b, then the other fields
-    in the order of ``Material.FIELDS``."""
-    return list(material.color) + [getattr(material, name) for name in Material.FIELDS[1:]]
 
 
 def matrices(objs) -> np.ndarray:
