@@ -141,7 +141,7 @@ class GeometryKeys:
                     raise ParameterError(
                         f"it moves a sphere of `{name}`, the sphere set (a scene's many opaque "
                         "spheres as one shape, which does not move; load the scene with "
-                        "sphere_set=0 to fit them)")
+                        "--sphere-set 0 (sphere_set=0) to fit them)")
                 if old != new:
                     raise ParameterError(f"it moves `{name}`, a {old[1]} (planes and tessellated "
                                          "objects cannot move: their meshes are rebuilt from the "

@@ -17,7 +17,7 @@ is opaque (kt = 0) and that do not contain the eye, when a scene has at least
 volumetric primitives), and only the rays of glass (refraction, shadow rays through it)
 and a camera inside a sphere start there. So a material that draws set spheres must stay
 opaque: the integrator refuses a render where such a material has kt > 0 (a fit of kt
-from 0 on such a scene: load it with ``sphere_set=0``).
+from 0 on such a scene: load it with ``--sphere-set 0``, ``sphere_set=0``).
 
 The data, per sphere, ten float32 (Mitsuba's order): the centre c (3), the scale (3: the
 radius r three times), the rotation as a unit quaternion (x, y, z, w). The rotation is

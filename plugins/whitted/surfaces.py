@@ -283,7 +283,7 @@ class Surfaces:
             raise OpaqueSetError(
                 "raywhitted: a material of the sphere set has kt > 0, but the set's spheres "
                 "must stay opaque (Mitsuba's ellipsoids cull the hits of rays from inside); "
-                "load the scene with sphere_set=0 to make them transparent "
+                "load the scene with --sphere-set 0 (sphere_set=0) to make them transparent "
                 "(raymitsuba/sphere_set.py)")
 
     def slot(self, shape, prim_index, active):

@@ -65,7 +65,7 @@ def show(value) -> str:
                    "the first comparing images averaged over 2^(levels-1) pixel blocks (so that "
                    "an object far from its place in the target still gets a gradient), the "
                    "last at full resolution.")
-@render_options("spp", "max_depth", "aa", "memory_budget")
+@render_options("spp", "max_depth", "aa", "memory_budget", "sphere_set")
 @click.option("--truth", default=None, type=click.Path(dir_okay=False),
               help="The true scene (same structure): also print each parameter's error.")
 @click.option("--plot", default=None, type=click.Path(dir_okay=False),

@@ -65,7 +65,7 @@ class _NotYet(Exception):
                    "3). With several scenes a template naming each: {stem}, {name}, {parent}, "
                    "{index} (e.g. 'out/{stem}.png', 'frames/{index:04d}.png').")
 @render_options("width", "height", "spp", "max_depth", "aa", "memory_budget", "bailout",
-                "time_limit", "srgb")
+                "time_limit", "srgb", "sphere_set")
 @click.option("--tiles", type=click.IntRange(1), default=None, metavar="N",
               help="Render each image as N bands of rows, each a task for a worker (the same "
                    "image, bit for bit); finished bands are kept, so an interrupted render "
