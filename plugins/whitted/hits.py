@@ -97,6 +97,17 @@ def sphere_rows(to_world, uv=True):
     return center, axis, [[row[i][0] for i in range(3)] for row in (it[j] for j in range(4))]
 
 
+def barycentrics(corners, p):
+    """(b1, b2) of the point ``p`` in the plane of the triangle ``corners`` (p0, p1, p2): p =
+    p0 + b1 (p1 - p0) + b2 (p2 - p0), by least squares (exact on the plane)."""
+    p0, p1, p2 = corners
+    e1, e2, rel = p1 - p0, p2 - p0, p - p0
+    a11, a12, a22 = dr.dot(e1, e1), dr.dot(e1, e2), dr.dot(e2, e2)
+    r1, r2 = dr.dot(e1, rel), dr.dot(e2, rel)
+    inv = dr.rcp(a11 * a22 - a12 * a12)
+    return (a22 * r1 - a12 * r2) * inv, (a11 * r2 - a12 * r1) * inv
+
+
 class SphereRows:
     """The sphere rows of a HitTable under construction: Mitsuba's spheres one by one
     (:func:`sphere_rows`), a sphere set's in bulk; ``arrays()`` gives them as float32
@@ -310,12 +321,7 @@ class HitTable:
     def uv_at(self, kind, vertex, corners, p, mesh):
         """The texture coordinates at the point ``p`` of each lane's face plane (its corners'
         indices ``vertex`` and positions ``corners``), as mesh_hit interpolates them."""
-        p0, p1, p2 = corners
-        e1, e2, rel = p1 - p0, p2 - p0, p - p0
-        a11, a12, a22 = dr.dot(e1, e1), dr.dot(e1, e2), dr.dot(e2, e2)
-        r1, r2 = dr.dot(e1, rel), dr.dot(e2, rel)
-        inv = dr.rcp(a11 * a22 - a12 * a12)
-        b1, b2 = (a22 * r1 - a12 * r2) * inv, (a11 * r2 - a12 * r1) * inv
+        b1, b2 = barycentrics(corners, p)
         uv = mi.Point2f(b1, b2)
         if self.has_texcoords:
             textured = mesh & ((kind & TEXCOORDS) != 0)
@@ -337,12 +343,8 @@ class HitTable:
         t = pi.t
         if attached:  # the hit follows the ray on the plane of its face
             t_ray = dr.dot(n, p0 - ray.o) / dr.dot(n, ray.d)
-            rel = ray(t_ray) - p0
-            a11, a12, a22 = dr.dot(e1, e1), dr.dot(e1, e2), dr.dot(e2, e2)
-            r1, r2 = dr.dot(e1, rel), dr.dot(e2, rel)
-            inv = dr.rcp(a11 * a22 - a12 * a12)
-            b1 = dr.replace_grad(b1, (a22 * r1 - a12 * r2) * inv)
-            b2 = dr.replace_grad(b2, (a11 * r2 - a12 * r1) * inv)
+            b1_ray, b2_ray = barycentrics((p0, p1, p2), ray(t_ray))
+            b1, b2 = dr.replace_grad(b1, b1_ray), dr.replace_grad(b2, b2_ray)
             t = dr.replace_grad(t, t_ray)
         b0 = 1.0 - b1 - b2
         p = dr.fma(p0, b0, dr.fma(p1, b1, p2 * b2))
@@ -364,10 +366,11 @@ class HitTable:
         """The hit on the sphere of table row ``row``: t is the root of |o + t d - c| = r
         that the ray tracer found (the one nearer its distance), solved here from the
         table's centre and radius, so that every representation of a sphere (Mitsuba's
-        ``sphere``, the sphere set's ``ellipsoids``) gives the same bits, and attached to
-        the ray and the geometry. Solved as Mitsuba's sphere does (the same operations, so
-        the same bits as its ray tracer): from the point of the ray's line nearest the
-        centre, o + t0 d, which leaves no cancellation far from the sphere."""
+        ``sphere``, the sphere set's ``ellipsoids``) gives the same bits, attached to the
+        ray and the geometry. The operations are those of Mitsuba's sphere (the same bits
+        as its ray tracer on most hits, never less accurate): the quadratic solved from the
+        point of the ray's line nearest the centre, o + t0 d, with no cancellation far
+        from the sphere."""
         center = dr.gather(mi.Point3f, self.center, row, sphere)
         radius = dr.gather(mi.Float, self.radius, row, sphere)
         oc = ray.o - center
