@@ -52,6 +52,7 @@ class SurfaceSet(mi.BSDF):
             else np.zeros(0, np.int64)
         self.table = np.array(table, np.float32)  # host values by row (kept current)
         self.material_ids = ids  # the i of each row's key mat{i}
+        self.row_of = {int(i): m for m, i in enumerate(ids)}  # mat{i}'s row, by i
         self.rows = tuple(TableRow(self, m) for m in range(len(ids)))
         # The distinct surfaces (shared ones, then the table's rows) and, per primitive, the
         # index of its surface
@@ -85,16 +86,16 @@ class SurfaceSet(mi.BSDF):
 
     def parameters_changed(self, keys=None):
         """Bring the host table up to date with the values of ``keys`` (``mat{i}.{field}``)."""
-        row_of = {int(i): m for m, i in enumerate(self.material_ids)}
         for key in keys or ():
             owner, _, field = key.partition(".")
-            row = row_of.get(int(owner[3:])) if owner[3:].isdigit() else None
+            row = self.row_of.get(int(owner[3:])) if owner[3:].isdigit() else None
             value = getattr(self.rows[row], field, None) if row is not None else None
             if value is None:
                 continue
             dr.make_opaque(value)  # data, not a constant of the kernels
             self.table[row, material_column(field)] = \
                 [value.x[0], value.y[0], value.z[0]] if field == "color" else value[0]
+            self.rows[row].host = None  # (read again from the table when next asked)
 
     def traverse(self, callback):
         pass  # the shared surfaces' parameters are under their own ids; the table: register
@@ -114,6 +115,7 @@ class TableRow:
 
     def __init__(self, surface_set, row):
         self.set, self.row = surface_set, row
+        self.host = None  # the host values, read from the set's table on first use
         for field in FIELDS:
             setattr(self, field, None)
 
@@ -123,6 +125,8 @@ class TableRow:
 
     @property
     def host_values(self):
-        values = self.set.table[self.row]
-        return {field: tuple(values[material_column(field)]) if field == "color"
-                else values[material_column(field)] for field in FIELDS}
+        if self.host is None:
+            values = self.set.table[self.row]
+            self.host = {field: tuple(values[material_column(field)]) if field == "color"
+                         else values[material_column(field)] for field in FIELDS}
+        return self.host

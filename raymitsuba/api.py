@@ -48,9 +48,9 @@ class Loaded:
         params = mitsuba().traverse(self.scene)
         if self.geometry is not None:
             self.geometry.register(params)
-        for shape in self.scene.shapes():
-            if hasattr(shape.bsdf(), "register"):  # a surface set's table
-                shape.bsdf().register(params)
+        for bsdf in (shape.bsdf() for shape in self.scene.shapes()):
+            if hasattr(bsdf, "register"):  # a surface set's table
+                bsdf.register(params)
         return params
 
     @property

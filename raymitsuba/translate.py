@@ -274,13 +274,13 @@ def shapes(model, options, surfaces, mi) -> dict:
         else:
             curved.append((surface_id, kind, objs))
     spheres, tessellated = analytic_or_tessellated(curved)
-    spheres, grouped = set_members(spheres, model, options)
+    spheres, grouped, grouped_to_world = set_members(spheres, model, options)
     names = ShapeNames()
     for obj, to_world, surface_id in spheres:
         out[names.next("sphere", obj.line)] = {"type": "sphere", "to_world": mi.ScalarTransform4f(to_world),
                                      "bsdf": {"type": "ref", "id": surface_id}}
     if grouped:
-        out["spheres"] = sphere_set_shape(grouped, model, surfaces, mi)
+        out["spheres"] = sphere_set_shape(grouped, grouped_to_world, model, surfaces, mi)
     out |= {f"triangles_{k}": mesh for k, mesh in enumerate(triangles)}
     meshes = quadric_meshes(tessellated, model, options, mi)
     return out | {f"quadrics_{k}": mesh for k, mesh in enumerate(meshes)}
@@ -320,29 +320,30 @@ def analytic_or_tessellated(curved):
 
 
 def set_members(spheres, model, options):
-    """(The analytic spheres drawn one by one, those drawn as the sphere set): the set takes
-    the opaque spheres that do not contain the eye when there are at least
-    ``options.sphere_set`` of them (see :mod:`raymitsuba.sphere_set`)."""
+    """(The analytic spheres drawn one by one, those drawn as the sphere set, the latter's
+    to_world (n, 4, 4)): the set takes the opaque spheres that do not contain the eye when
+    there are at least ``options.sphere_set`` of them (see :mod:`raymitsuba.sphere_set`)."""
     if not options.sphere_set or len(spheres) < options.sphere_set:
-        return spheres, []
+        return spheres, [], None
     m = np.array([to_world for _, to_world, _ in spheres], np.float64)
     opaque = np.array([model.materials[obj.material].refractivity == 0 for obj, _, _ in spheres])
     eye = np.asarray(model.camera.eye, np.float64)
     outside = np.linalg.norm(m[:, :3, 3] - eye, axis=1) > 1.001 * np.linalg.norm(m[:, :3, 0], axis=1)
     member = opaque & outside
     if np.count_nonzero(member) < options.sphere_set:
-        return spheres, []
+        return spheres, [], None
     return ([s for s, k in zip(spheres, member) if not k],
-            [s for s, k in zip(spheres, member) if k])
+            [s for s, k in zip(spheres, member) if k], m[member])
 
 
-def sphere_set_shape(members, model, surfaces, mi) -> dict:
-    """The shape of the sphere set ([(object, to_world rows, surface id)]): Mitsuba's
+def sphere_set_shape(members, to_world, model, surfaces, mi) -> dict:
+    """The shape of the sphere set ([(object, to_world rows, surface id)], their to_world
+    (n, 4, 4)): Mitsuba's
     ``ellipsoids`` holding them in this order, its BSDF a ``raysurfaceset`` giving each
     one's surface: a reference to a shared or textured surface, or a row of its table of
     the materials that only its untextured spheres use (recorded in ``surfaces.tabled``:
     they get no ``rayphong`` of their own)."""
-    data = sphere_set.pack(np.array([to_world for _, to_world, _ in members], np.float64))
+    data = sphere_set.pack(to_world)
     member_ids = {id(obj) for obj, _, _ in members}
     used_elsewhere = {obj.material for obj in model.objects
                       if id(obj) not in member_ids or obj.texture is not None} | \

@@ -170,7 +170,8 @@ def probe(tracer, scene, sensor, width, height, spp, terms):
     camera = len(pixels) * samples
     try:
         with dr.suspend_grad():
-            trace, rate = timed(lambda: tracer.trace(scene, job.rays(sensor, 0, job.count),
+            trace, rate = timed(lambda: tracer.trace(scene, job.rays(sensor, 0, job.count,
+                                                                     tracer.footprint),
                                                      terms, PROBE_RAYS))
         return sum(trace.rays_per_generation) / camera, rate
     except TreeTooLarge as e:

@@ -109,31 +109,42 @@ def barycentrics(corners, p):
 
 
 class SphereRows:
-    """The sphere rows of a HitTable under construction: Mitsuba's spheres one by one
-    (:func:`sphere_rows`), a sphere set's in bulk; ``arrays()`` gives them as float32
-    (centres (n, 3), radii (n,), world-to-object columns (n, 4, 3) or None without uv)."""
+    """The sphere rows of a HitTable under construction, in order: Mitsuba's spheres one by
+    one (:func:`sphere_rows`: host values, made arrays a run at a time), a sphere set's in
+    bulk; ``arrays()`` gives them as float32 (centres (n, 3), radii (n,), world-to-object
+    columns (n, 4, 3) or None without uv)."""
 
     def __init__(self, uv):
         self.uv, self.count = uv, 0
-        self.center, self.radius, self.to_object = [], [], []
+        self.blocks = []  # (centres, radii, world-to-object columns or None), in row order
+        self.run = []  # the latest Mitsuba spheres' sphere_rows, not yet a block
 
     def add(self, center, axis, to_object):
-        self.center.append(np.array([center], np.float64))
-        self.radius.append(np.linalg.norm(np.array([axis], np.float32).astype(np.float64), axis=1))
-        self.to_object.append(np.array([to_object], np.float32) if self.uv else None)
+        self.run.append((center, axis, to_object))
         self.count += 1
 
     def add_set(self, data):
+        self.close_run()
         center, radius, to_object = sphere_set.unpack(data)
-        self.center.append(center)
-        self.radius.append(radius)
-        self.to_object.append(np.transpose(to_object, (0, 2, 1)) if self.uv else None)
+        self.blocks.append((center, radius, np.transpose(to_object, (0, 2, 1)) if self.uv
+                            else None))
         self.count += len(radius)
 
+    def close_run(self):
+        if self.run:
+            center, axis, to_object = zip(*self.run)
+            self.blocks.append((np.array(center, np.float64),
+                                np.linalg.norm(np.array(axis, np.float32).astype(np.float64),
+                                               axis=1),
+                                np.array(to_object, np.float32) if self.uv else None))
+            self.run = []
+
     def arrays(self):
-        to_object = np.concatenate(self.to_object).astype(np.float32) if self.uv else None
-        return (np.concatenate(self.center).astype(np.float32),
-                np.concatenate(self.radius).astype(np.float32), to_object)
+        self.close_run()
+        center, radius, to_object = zip(*self.blocks)
+        return (np.concatenate(center).astype(np.float32),
+                np.concatenate(radius).astype(np.float32),
+                np.concatenate(to_object).astype(np.float32) if self.uv else None)
 
 
 class HitTable:
@@ -314,20 +325,9 @@ class HitTable:
         footprint = []
         for o, d in ((ray.o_x, ray.d_x), (ray.o_y, ray.d_y)):
             t = dr.dot(n, p0 - o) / dr.dot(n, d)
-            uv = self.uv_at(kind, vertex, (p0, p1, p2), o + t * d, mesh)
+            uv = self.texcoords_at(kind, vertex, *barycentrics((p0, p1, p2), o + t * d), mesh)
             footprint.append(dr.select(mesh, mi.Vector2f(uv - si.uv), 0.0))
         return tuple(footprint)
-
-    def uv_at(self, kind, vertex, corners, p, mesh):
-        """The texture coordinates at the point ``p`` of each lane's face plane (its corners'
-        indices ``vertex`` and positions ``corners``), as mesh_hit interpolates them."""
-        b1, b2 = barycentrics(corners, p)
-        uv = mi.Point2f(b1, b2)
-        if self.has_texcoords:
-            textured = mesh & ((kind & TEXCOORDS) != 0)
-            uv0, uv1, uv2 = (dr.gather(mi.Point2f, self.texcoords, v, textured) for v in vertex)
-            uv = dr.select(textured, dr.fma(uv2, b2, dr.fma(uv1, b1, uv0 * (1.0 - b1 - b2))), uv)
-        return uv
 
     def corners(self, row, prim_index, mesh):
         """(face vertex indices, positions) of each lane's hit face."""
@@ -355,12 +355,18 @@ class HitTable:
             interpolated = dr.fma(n2, b2, dr.fma(n1, b1, n0 * b0))
             interpolated *= dr.rsqrt(dr.squared_norm(interpolated))
             shading_n = dr.select(smooth, mi.Normal3f(interpolated), n)
+        return t, p, n, shading_n, self.texcoords_at(kind, vertex, b1, b2, mesh)
+
+    def texcoords_at(self, kind, vertex, b1, b2, mesh):
+        """The texture coordinates at barycentrics (b1, b2) of each lane's face (its
+        corners' indices ``vertex``): the mesh's interpolated, or (b1, b2) on a mesh
+        without any."""
         uv = mi.Point2f(b1, b2)
         if self.has_texcoords:
             textured = mesh & ((kind & TEXCOORDS) != 0)
             uv0, uv1, uv2 = (dr.gather(mi.Point2f, self.texcoords, v, textured) for v in vertex)
-            uv = dr.select(textured, dr.fma(uv2, b2, dr.fma(uv1, b1, uv0 * b0)), uv)
-        return t, p, n, shading_n, uv
+            uv = dr.select(textured, dr.fma(uv2, b2, dr.fma(uv1, b1, uv0 * (1.0 - b1 - b2))), uv)
+        return uv
 
     def sphere_hit(self, pi, ray, row, sphere, attached):
         """The hit on the sphere of table row ``row``: t is the root of |o + t d - c| = r
