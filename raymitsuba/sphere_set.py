@@ -1,29 +1,38 @@
-"""The sphere set: many analytic spheres as one Mitsuba shape, and its data layout.
+"""The sphere set: many analytic spheres and ellipsoids as one Mitsuba shape, and its data layout.
 
 A scene with thousands of spheres would otherwise create a Mitsuba ``sphere`` per object
-(about 40 microseconds of ``mi.load_dict`` each, and an Embree geometry each). Mitsuba's
-``ellipsoids`` shape holds any number of ellipsoids in one object and one Embree
-geometry; with equal scales on the three axes each is an exact sphere. The translator
-(``translate.py``) packs the spheres into it and the Whitted integrator's hit table
+(about 40 microseconds of ``mi.load_dict`` each, and an Embree geometry each), and its
+spheres under non-uniform scales would be tessellated (tens of triangles each, Embree's
+BVH build being the largest cost per triangle). Mitsuba's ``ellipsoids`` shape holds any
+number of ellipsoids in one object and one Embree geometry: with equal scales on the three
+axes each is an exact sphere, with unequal ones an exact ellipsoid. The translator
+(``translate.py``) packs them into it and the Whitted integrator's hit table
 (``plugins/whitted/hits.py``) reads them back; this module is the layout both use.
 
-The set's BSDF (``raysurfaceset``) holds a table of the materials only its spheres use, a
+The set's BSDF (``raysurfaceset``) holds a table of the materials only its members use, a
 row each (``material_row``).
 
-Which spheres: the analytic ones (a similarity transform without mirroring) whose material
-is opaque (kt = 0) and that do not contain the eye, when a scene has at least
-``RenderOptions.sphere_set`` of them (default 256; 0: never). The restriction is Mitsuba's:
-``ellipsoids`` culls the hits of a ray that starts inside an ellipsoid (it is made for
-volumetric primitives), and only the rays of glass (refraction, shadow rays through it)
-and a camera inside a sphere start there. So a material that draws set spheres must stay
-opaque: the integrator refuses a render where such a material has kt > 0 (a fit of kt
-from 0 on such a scene: load it with ``--sphere-set 0``, ``sphere_set=0``).
+Which spheres: those whose material is opaque (kt = 0) and that do not contain the eye,
+under a similarity transform without mirroring (drawn by Mitsuba's ``sphere`` otherwise)
+or, if their surface is untextured, under any other invertible transform (tessellated
+otherwise), when a scene has at least ``RenderOptions.sphere_set`` of them (default 256;
+0: never). The restriction to opaque ones is Mitsuba's: ``ellipsoids`` culls the hits of
+a ray that starts inside an ellipsoid (it is made for volumetric primitives), and only the
+rays of glass (refraction, shadow rays through it) and a camera inside a sphere start
+there. So a material that draws set spheres must stay opaque: the integrator refuses a
+render where such a material has kt > 0 (a fit of kt from 0 on such a scene: load it with
+``--sphere-set 0``, ``sphere_set=0``).
 
-The data, per sphere, ten float32 (Mitsuba's order): the centre c (3), the scale (3: the
-radius r three times), the rotation as a unit quaternion (x, y, z, w). The rotation is
-that of the sphere's to-world transform (``to_world = T(c) R S(r)``); it does not change
-the sphere, only its texture coordinates (``uv`` from the object-space point, as for
-Mitsuba's own sphere). ``extent`` is 1 (Mitsuba's default, 3, is for Gaussian kernels).
+The data, per member, ten float32 (Mitsuba's order): the centre c (3), the scales (3), the
+rotation as a unit quaternion (x, y, z, w), the member being ``T(c) R S(scales)`` applied
+to the unit sphere. For a sphere (a to-world transform ``T(c) R S(r)``) the scales are the
+radius r three times and R is the transform's rotation: it does not change the sphere,
+only its texture coordinates (``uv`` from the object-space point, as for Mitsuba's own
+sphere). For an ellipsoid (``T(c) A``, A any invertible matrix, A = U diag(s) V^T its
+singular value decomposition) the scales are the singular values s and R = U (a column
+negated if U mirrors): the same surface, since V^T maps the unit sphere onto itself, but
+not the same object space -- so ellipsoids with a texture stay tessellated (their
+``uv`` would turn with V). ``extent`` is 1 (Mitsuba's default, 3, is for Gaussian kernels).
 """
 
 from __future__ import annotations
@@ -51,27 +60,49 @@ def material_column(field: str):
 
 
 def pack(to_world: np.ndarray) -> np.ndarray:
-    """The set's data (n * FLOATS float32) for the spheres of to-world transforms
-    ``to_world`` (n, 4, 4): a rotation times a positive uniform scale, then a translation."""
+    """The set's data (n * FLOATS float32) of the members of to-world transforms
+    ``to_world`` (n, 4, 4): an invertible linear part, then a translation. A linear part
+    that is a rotation times a positive uniform scale gives a sphere (exactly: its radius
+    three times, its rotation); any other, an ellipsoid (its singular values and rotation,
+    see the module docstring)."""
     m = np.asarray(to_world, np.float64).reshape(-1, 4, 4)
-    radius = np.linalg.norm(m[:, :3, 0], axis=1)
-    rotation = m[:, :3, :3] / radius[:, None, None]
+    linear = m[:, :3, :3]
+    radius = np.linalg.norm(linear[:, :, 0], axis=1)
+    scales = np.repeat(radius[:, None], 3, axis=1)
+    rotation = linear / radius[:, None, None]
+    ellipsoid = ~is_similarity(linear)
+    if ellipsoid.any():
+        u, s, _ = np.linalg.svd(linear[ellipsoid])
+        u[np.linalg.det(u) < 0, :, 2] *= -1.0  # a proper rotation: the same surface
+        scales[ellipsoid], rotation[ellipsoid] = s, u
     data = np.empty((len(m), FLOATS), np.float64)
     data[:, 0:3] = m[:, :3, 3]
-    data[:, 3:6] = radius[:, None]
+    data[:, 3:6] = scales
     data[:, 6:10] = quaternion(rotation)
     return data.astype(np.float32).ravel()
 
 
+def is_similarity(linear: np.ndarray) -> np.ndarray:
+    """Which linear parts (n, 3, 3) are a rotation times a positive uniform scale (no
+    mirroring, no shear): the transforms of spheres."""
+    gram = np.einsum("nki,nkj->nij", linear, linear)
+    scale2 = np.trace(gram, axis1=1, axis2=2) / 3.0
+    off = np.abs(gram - scale2[:, None, None] * np.eye(3)).max(axis=(1, 2))
+    return (np.linalg.det(linear) > 0) & (off <= 1e-9 * scale2)
+
+
 def unpack(data: np.ndarray):
-    """(centres (n, 3), radii (n,), world-to-object matrices (n, 3, 4)) of the set's data,
-    float64: the inverse of to_world = T(c) R S(r) is S(1/r) R^T T(-c)."""
+    """(centres (n, 3), radii (n,), world-to-object matrices (n, 3, 4), which members are
+    ellipsoids (n,)) of the set's data, float64: the inverse of T(c) R S(scales) is
+    S(1/scales) R^T T(-c). An ellipsoid's radius is its first scale; its object space is
+    the set's (see the module docstring)."""
     d = np.asarray(data, np.float64).reshape(-1, FLOATS)
-    center, radius = d[:, 0:3], d[:, 3]
-    inverse_linear = np.transpose(rotation(d[:, 6:10]), (0, 2, 1)) / radius[:, None, None]
+    center, scales = d[:, 0:3], d[:, 3:6]
+    inverse_linear = np.transpose(rotation(d[:, 6:10]), (0, 2, 1)) / scales[:, :, None]
     to_object = np.concatenate(
         [inverse_linear, -np.einsum("nij,nj->ni", inverse_linear, center)[:, :, None]], axis=2)
-    return center, radius, to_object
+    ellipsoid = (scales[:, 1] != scales[:, 0]) | (scales[:, 2] != scales[:, 0])
+    return center, scales[:, 0], to_object, ellipsoid
 
 
 def quaternion(r: np.ndarray) -> np.ndarray:

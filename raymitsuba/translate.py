@@ -20,8 +20,9 @@ wherever there are many):
 
 * sphere: Mitsuba's analytic ``sphere`` when the transform is a similarity
   without mirroring (exact), else tessellated (below); in a scene with at least
-  ``Options.sphere_set`` (256) opaque analytic spheres, those are one shape, ``spheres``
-  (:mod:`raymitsuba.sphere_set`: Mitsuba's ``ellipsoids``, exact spheres too);
+  ``Options.sphere_set`` (256) opaque spheres that may join it (analytic ones, and
+  tessellated ones of an untextured surface), those are one shape, ``spheres``
+  (:mod:`raymitsuba.sphere_set`: Mitsuba's ``ellipsoids``, exact spheres and ellipsoids);
 * cylinder, cone, and the other spheres: tessellated (see :mod:`raymitsuba.tessellation`),
   all those of one surface merged into one smooth ``raytriangles`` mesh, ``quadrics_{k}``;
 * plane: ``rayplane``, rings centred under the camera out past the horizon;
@@ -274,7 +275,8 @@ def shapes(model, options, surfaces, mi) -> dict:
         else:
             curved.append((surface_id, kind, objs))
     spheres, tessellated = analytic_or_tessellated(curved)
-    spheres, grouped, grouped_to_world = set_members(spheres, model, options)
+    spheres, grouped, grouped_to_world, tessellated = set_members(spheres, tessellated, model,
+                                                                  options)
     names = ShapeNames()
     for obj, to_world, surface_id in spheres:
         out[names.next("sphere", obj.line)] = {"type": "sphere", "to_world": mi.ScalarTransform4f(to_world),
@@ -302,10 +304,11 @@ class ShapeNames:
 def analytic_or_tessellated(curved):
     """Split the curved objects ([(surface id, kind, objects)]) into analytic spheres
     [(object, Mitsuba sphere's to_world as rows, surface id)] and the tessellated rest
-    [(surface id, kind, transforms (n, 4, 4))], classifying all of them at once."""
+    [(surface id, kind, transforms (n, 4, 4), objects)], classifying all of them at once."""
     objs = [obj for _, _, group in curved for obj in group]
     m = matrices(objs)
-    exact = np.array([obj.kind is ObjectKind.SPHERE for obj in objs], bool) & analytic_sphere(m)
+    exact = np.array([obj.kind is ObjectKind.SPHERE for obj in objs], bool) & \
+        sphere_set.is_similarity(m[:, :3, :3])
     rows = iter((m[exact] @ Z_TO_Y).tolist())
     flags = exact.tolist()  # (groups are often of one object: no numpy work per group)
     spheres, tessellated, start = [], [], 0
@@ -313,27 +316,56 @@ def analytic_or_tessellated(curved):
         stop = start + len(group)
         exact_group = flags[start:stop]
         spheres += [(obj, next(rows), surface_id) for obj, e in zip(group, exact_group) if e]
-        if not all(exact_group):
-            tessellated.append((surface_id, kind, m[start:stop][~exact[start:stop]]))
+        if not any(exact_group):
+            tessellated.append((surface_id, kind, m[start:stop], group))
+        elif not all(exact_group):
+            tessellated.append((surface_id, kind, m[start:stop][~exact[start:stop]],
+                                [obj for obj, e in zip(group, exact_group) if not e]))
         start = stop
     return spheres, tessellated
 
 
-def set_members(spheres, model, options):
-    """(The analytic spheres drawn one by one, those drawn as the sphere set, the latter's
-    to_world (n, 4, 4)): the set takes the opaque spheres that do not contain the eye when
-    there are at least ``options.sphere_set`` of them (see :mod:`raymitsuba.sphere_set`)."""
-    if not options.sphere_set or len(spheres) < options.sphere_set:
-        return spheres, [], None
-    m = np.array([to_world for _, to_world, _ in spheres], np.float64)
-    opaque = np.array([model.materials[obj.material].refractivity == 0 for obj, _, _ in spheres])
+def set_members(spheres, tessellated, model, options):
+    """(The analytic spheres drawn one by one, the sphere set's members [(object, to_world
+    rows or None, surface id)], their to_world (n, 4, 4), the tessellated objects left):
+    the set takes the opaque spheres that do not contain the eye -- the analytic ones and
+    the untextured tessellated ones (ellipsoids) -- when there are at least
+    ``options.sphere_set`` of them (see :mod:`raymitsuba.sphere_set`)."""
+    if not options.sphere_set:
+        return spheres, [], None, tessellated
     eye = np.asarray(model.camera.eye, np.float64)
-    outside = np.linalg.norm(m[:, :3, 3] - eye, axis=1) > 1.001 * np.linalg.norm(m[:, :3, 0], axis=1)
-    member = opaque & outside
-    if np.count_nonzero(member) < options.sphere_set:
-        return spheres, [], None
-    return ([s for s, k in zip(spheres, member) if not k],
-            [s for s, k in zip(spheres, member) if k], m[member])
+
+    def joins(objs, m):
+        """Which of the spheres ``objs`` (to_world ``m``) may join: opaque, the eye outside."""
+        opaque = np.array([model.materials[obj.material].refractivity == 0 for obj in objs], bool)
+        eye_local = np.linalg.solve(m[:, :3, :3], (eye - m[:, :3, 3])[:, :, None])[:, :, 0]
+        return opaque & (np.linalg.norm(eye_local, axis=1) > 1.001)
+
+    m = np.array([to_world for _, to_world, _ in spheres], np.float64).reshape(-1, 4, 4)
+    member = joins([obj for obj, _, _ in spheres], m)
+    ellipsoids = []  # per tessellated entry: which of its objects join (None: not spheres)
+    for surface_id, kind, to_world, objs in tessellated:
+        textured = surface_id != f"mat{objs[0].material}"
+        ellipsoids.append(joins(objs, to_world) if kind is ObjectKind.SPHERE and not textured
+                          else None)
+    count = np.count_nonzero(member) + sum(np.count_nonzero(e) for e in ellipsoids
+                                           if e is not None)
+    if count < options.sphere_set:
+        return spheres, [], None, tessellated
+    members = [s for s, k in zip(spheres, member) if k]
+    to_world, left = [m[member]], []
+    for entry, joined in zip(tessellated, ellipsoids):
+        if joined is None or not joined.any():
+            left.append(entry)
+            continue
+        surface_id, kind, transforms, objs = entry
+        members += [(obj, None, surface_id) for obj, k in zip(objs, joined) if k]
+        to_world.append(transforms[joined])
+        if not joined.all():
+            left.append((surface_id, kind, transforms[~joined],
+                         [obj for obj, k in zip(objs, joined) if not k]))
+    return ([s for s, k in zip(spheres, member) if not k], members, np.concatenate(to_world),
+            left)
 
 
 def sphere_set_shape(members, to_world, model, surfaces, mi) -> dict:
@@ -371,16 +403,6 @@ def sphere_set_shape(members, to_world, model, surfaces, mi) -> dict:
 def matrices(objs) -> np.ndarray:
     """The objects' to_world matrices, (n, 4, 4) float64."""
     return np.array(list(map(operator.attrgetter("to_world"), objs)), dtype=np.float64).reshape(-1, 4, 4)
-
-
-def analytic_sphere(m):
-    """Which transforms (n, 4, 4) Mitsuba's analytic sphere draws exactly: a rotation times a
-    positive uniform scale (a similarity without mirroring or shear)."""
-    linear = m[:, :3, :3]
-    gram = np.einsum("nki,nkj->nij", linear, linear)
-    scale2 = np.trace(gram, axis1=1, axis2=2) / 3.0
-    off = np.abs(gram - scale2[:, None, None] * np.eye(3)).max(axis=(1, 2))
-    return (np.linalg.det(linear) > 0) & (off <= 1e-9 * scale2)
 
 
 def plane(obj, model, mi) -> dict:
@@ -441,15 +463,15 @@ def within_budget(wanted: dict, budget: int, limit: int) -> dict:
 
 def quadric_meshes(curved, model, options, mi) -> list:
     """One smooth ``raytriangles`` mesh per surface holding every tessellated object of it.
-    ``curved``: [(surface id, kind, transforms (n, 4, 4))]."""
+    ``curved``: [(surface id, kind, transforms (n, 4, 4), objects)]."""
     wanted = {}
-    for _, kind, m in curved:
+    for _, kind, m, _ in curved:
         wanted.setdefault(kind, []).append(wanted_segments(m, kind, model, options))
     wanted = {kind: np.concatenate(w) for kind, w in wanted.items()}
     counts = within_budget(wanted, options.tessellation_budget, options.tessellation_limit)
     taken = {kind: 0 for kind in counts}
     batches = {}  # surface id -> [(template, transforms)]
-    for surface_id, kind, m in curved:
+    for surface_id, kind, m, _ in curved:
         segments = counts[kind][taken[kind]:taken[kind] + len(m)]
         taken[kind] += len(m)
         for count in np.unique(segments):

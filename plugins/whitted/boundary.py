@@ -602,8 +602,10 @@ class Boundary:
         d = dr.normalize(ray.d)
         if table.has_spheres:
             sphere = valid & ((kind & SPHERE) != 0)
-            c, r = self.sphere(table, row, prim, sphere)
-            out = dr.select(sphere, r - dr.norm(dr.cross(c - ray.o, d)), out)
+            oc, d_local, r = self.sphere_frame(table, row, prim, ray.o, d, sphere)
+            if table.has_ellipsoids:  # (an ellipsoid's direction in object space: not unit)
+                d_local = dr.normalize(d_local)
+            out = dr.select(sphere, r - dr.norm(dr.cross(oc, d_local)), out)
         if table.has_meshes:
             mesh = valid & ((kind & MESH) != 0)
             e = self.edge_functions(table, ray, d, row, prim, mesh)
@@ -616,12 +618,12 @@ class Boundary:
         return out
 
     @staticmethod
-    def sphere(table, row, prim, sphere):
-        """(centre, radius) of each lane's sphere: row ``row + prim`` (numpy ``prim``: 0 for a
-        Mitsuba sphere, the sphere's index in a sphere set)."""
+    def sphere_frame(table, row, prim, o, d, sphere):
+        """Each lane's ray (o, d) in the frame of its sphere (``HitTable.sphere_frame``):
+        row ``row + prim`` (numpy ``prim``: 0 for a Mitsuba sphere, the sphere's index in a
+        sphere set)."""
         row = row + jit_array(mi.UInt32, prim.astype(np.uint32))
-        return (dr.gather(mi.Point3f, table.center, row, sphere),
-                dr.gather(mi.Float, table.radius, row, sphere))
+        return table.sphere_frame(row, o, d, sphere)
 
     def edge_functions(self, table, ray, d, row, prim, mesh):
         """The three normalized edge functions of each lane's face, signed to be > 0 inside."""
@@ -659,9 +661,8 @@ class Boundary:
         out = mi.Float(0.0)
         if table.has_spheres:
             sphere = valid & ((kind & SPHERE) != 0)
-            c, r = self.sphere(table, row, prim, sphere)
-            oc = ray.o - c
-            a, b = dr.squared_norm(ray.d), dr.dot(oc, ray.d)
+            oc, d, r = self.sphere_frame(table, row, prim, ray.o, ray.d, sphere)
+            a, b = dr.squared_norm(d), dr.dot(oc, d)
             root = dr.safe_sqrt(dr.square(b) - a * (dr.squared_norm(oc) - dr.square(r)))
             out = dr.select(sphere, (-b - root) / a, out)
         if table.has_meshes:

@@ -111,12 +111,15 @@ def barycentrics(corners, p):
 class SphereRows:
     """The sphere rows of a HitTable under construction, in order: Mitsuba's spheres one by
     one (:func:`sphere_rows`: host values, made arrays a run at a time), a sphere set's in
-    bulk; ``arrays()`` gives them as float32 (centres (n, 3), radii (n,), world-to-object
-    columns (n, 4, 3) or None without uv)."""
+    bulk (its ellipsoids too); ``arrays()`` gives them as float32 (centres (n, 3), radii
+    (n,), world-to-object columns (n, 4, 3) or None, which rows are ellipsoids (n,) bool).
+    The world-to-object columns are kept with ``uv`` or where a row is an ellipsoid (its
+    hits are solved in object space); a Mitsuba sphere's are then read only with ``uv``
+    (zeros otherwise: not used)."""
 
     def __init__(self, uv):
         self.uv, self.count = uv, 0
-        self.blocks = []  # (centres, radii, world-to-object columns or None), in row order
+        self.blocks = []  # (centres, radii, world-to-object columns, ellipsoids), in row order
         self.run = []  # the latest Mitsuba spheres' sphere_rows, not yet a block
 
     def add(self, center, axis, to_object):
@@ -125,26 +128,30 @@ class SphereRows:
 
     def add_set(self, data):
         self.close_run()
-        center, radius, to_object = sphere_set.unpack(data)
-        self.blocks.append((center, radius, np.transpose(to_object, (0, 2, 1)) if self.uv
-                            else None))
+        center, radius, to_object, ellipsoid = sphere_set.unpack(data)
+        self.blocks.append((center, radius, np.transpose(to_object, (0, 2, 1)), ellipsoid))
         self.count += len(radius)
 
     def close_run(self):
         if self.run:
             center, axis, to_object = zip(*self.run)
+            count = len(center)
             self.blocks.append((np.array(center, np.float64),
                                 np.linalg.norm(np.array(axis, np.float32).astype(np.float64),
                                                axis=1),
-                                np.array(to_object, np.float32) if self.uv else None))
+                                np.array(to_object, np.float32) if self.uv
+                                else np.zeros((count, 4, 3), np.float32),
+                                np.zeros(count, bool)))
             self.run = []
 
     def arrays(self):
         self.close_run()
-        center, radius, to_object = zip(*self.blocks)
+        center, radius, to_object, ellipsoid = zip(*self.blocks)
+        ellipsoid = np.concatenate(ellipsoid)
+        keep = self.uv or ellipsoid.any()
         return (np.concatenate(center).astype(np.float32),
                 np.concatenate(radius).astype(np.float32),
-                np.concatenate(to_object).astype(np.float32) if self.uv else None)
+                np.concatenate(to_object).astype(np.float32) if keep else None, ellipsoid)
 
 
 class HitTable:
@@ -178,7 +185,10 @@ class HitTable:
         self.has_spheres = False  # whether the scene has a sphere
         self.center = None  # Point3f
         self.radius = None  # Float
-        self.to_object = None  # Float: the world-to-object columns, 4 x 3 per sphere (None: no uv)
+        self.to_object = None  # Float: the world-to-object columns, 4 x 3 per sphere (None:
+        # neither uv nor ellipsoids)
+        self.has_ellipsoids = False  # whether some row is an ellipsoid (of a sphere set)
+        self.ellipsoid = None  # Bool by row, if has_ellipsoids: its hits solved in object space
 
     # -- the table ---------------------------------------------------------------------------
     def update(self, scene, uv=True, ids=None):
@@ -266,15 +276,18 @@ class HitTable:
         # (only the attributes some mesh has: flat or untextured scenes keep no zeros)
         self.normals = upload(normals if self.has_smooth else [], np.float32, 3)
         self.texcoords = upload(texcoords if self.has_texcoords else [], np.float32, 2)
+        self.has_ellipsoids = False
+        self.center = self.radius = self.to_object = self.ellipsoid = None
         if spheres.count:
-            center, radius, to_object = spheres.arrays()
+            center, radius, to_object, ellipsoid = spheres.arrays()
             self.center = mi.Point3f(*(jit_array(mi.Float, center[:, i])
                                        for i in range(3)))
             self.radius = jit_array(mi.Float, radius)
             # columns of the world-to-object transform (its first three rows), 4 x 3 per sphere
-            self.to_object = jit_array(mi.Float, to_object) if self.uv else None
-        else:
-            self.center = self.radius = self.to_object = None
+            self.to_object = None if to_object is None else jit_array(mi.Float, to_object)
+            self.has_ellipsoids = bool(ellipsoid.any())
+            if self.has_ellipsoids:
+                self.ellipsoid = jit_array(mi.Bool, ellipsoid)
 
     # -- the hits ----------------------------------------------------------------------------
     def intersect(self, scene, ray, coherent=False):
@@ -368,6 +381,25 @@ class HitTable:
             uv = dr.select(textured, dr.fma(uv2, b2, dr.fma(uv1, b1, uv0 * (1.0 - b1 - b2))), uv)
         return uv
 
+    def sphere_frame(self, row, o, d, sphere):
+        """(oc, d, r): the ray (o, d) in the frame where the sphere of row ``row`` is centred
+        at the origin with radius r -- for a sphere the world's frame shifted by its centre
+        (o - c, d, its radius), for an ellipsoid its object space (W o + w, W d, 1; the same
+        ray parameter t). ``o``, ``d``: Point3f, Vector3f."""
+        center = dr.gather(mi.Point3f, self.center, row, sphere)
+        radius = dr.gather(mi.Float, self.radius, row, sphere)
+        oc = o - center
+        if not self.has_ellipsoids:
+            return oc, d, radius
+        ellipsoid = sphere & dr.gather(mi.Bool, self.ellipsoid, row, sphere)
+        w = self.to_object_columns(row, ellipsoid)
+        return (dr.select(ellipsoid, _linear(w, o) + w[3], oc),
+                dr.select(ellipsoid, _linear(w, d), d), dr.select(ellipsoid, 1.0, radius))
+
+    def to_object_columns(self, row, active):
+        """The four columns of row ``row``'s world-to-object transform (3 x 4)."""
+        return [dr.gather(mi.Vector3f, self.to_object, row * 4 + i, active) for i in range(4)]
+
     def sphere_hit(self, pi, ray, row, sphere, attached):
         """The hit on the sphere of table row ``row``: t is the root of |o + t d - c| = r
         that the ray tracer found (the one nearer its distance), solved here from the
@@ -376,25 +408,37 @@ class HitTable:
         ray and the geometry. The operations are those of Mitsuba's sphere (the same bits
         as its ray tracer on most hits, never less accurate): the quadratic solved from the
         point of the ray's line nearest the centre, o + t0 d, with no cancellation far
-        from the sphere."""
-        center = dr.gather(mi.Point3f, self.center, row, sphere)
-        radius = dr.gather(mi.Float, self.radius, row, sphere)
-        oc = ray.o - center
-        a = dr.squared_norm(ray.d)
-        t0 = -dr.dot(oc, ray.d) / a
-        h = dr.fma(ray.d, t0, oc)
-        _, near, far = mi.math.solve_quadratic(a, 2.0 * dr.dot(h, ray.d),
+        from the sphere. An ellipsoid's hit is solved alike in its object space
+        (:meth:`sphere_frame`), its normal the inverse transpose of the object-space one."""
+        oc, d, radius = self.sphere_frame(row, ray.o, ray.d, sphere)
+        a = dr.squared_norm(d)
+        t0 = -dr.dot(oc, d) / a
+        h = dr.fma(d, t0, oc)
+        _, near, far = mi.math.solve_quadratic(a, 2.0 * dr.dot(h, d),
                                                dr.squared_norm(h) - dr.square(radius))
         near, far = near + t0, far + t0
         t = dr.select(dr.abs(near - pi.t) <= dr.abs(far - pi.t), near, far)
         p = ray(t)
+        center = dr.gather(mi.Point3f, self.center, row, sphere)
         n = mi.Normal3f(dr.normalize(p - center))
-        if self.to_object is None:  # no uv used (see update)
+        columns = None
+        if self.has_ellipsoids:
+            ellipsoid = sphere & dr.gather(mi.Bool, self.ellipsoid, row, sphere)
+            columns = self.to_object_columns(row, sphere)
+            local = _linear(columns, p) + columns[3]
+            normal = mi.Vector3f(*(dr.dot(columns[i], local) for i in range(3)))  # W^T local
+            n = dr.select(ellipsoid, mi.Normal3f(dr.normalize(normal)), n)
+        if not self.uv:  # no uv used (see update)
             return t, p, n, mi.Point2f(0.0)
-        columns = [dr.gather(mi.Vector3f, self.to_object, row * 4 + i, sphere) for i in range(4)]
+        columns = columns or self.to_object_columns(row, sphere)
         local = dr.fma(columns[2], p.z, dr.fma(columns[1], p.y, dr.fma(columns[0], p.x,
                                                                       columns[3])))
         theta = dr.safe_acos(local.z)
         phi = dr.atan2(local.y, local.x)
         phi = dr.select(phi < 0.0, phi + 2.0 * dr.pi, phi)
         return t, p, n, mi.Point2f(phi * dr.inv_two_pi, theta * dr.inv_pi)
+
+
+def _linear(columns, v):
+    """The linear part of a 3 x 4 transform (its ``columns``) applied to ``v``."""
+    return dr.fma(columns[2], v.z, dr.fma(columns[1], v.y, columns[0] * v.x))

@@ -113,6 +113,20 @@ def test_moving_edges_match_finite_differences(mi, text, key, direction, h):
     assert rev == pytest.approx(np.sum(w * grad), rel=1e-4)
 
 
+def test_an_ellipsoid_of_the_sphere_set_moves_its_silhouette_with_the_camera(mi):
+    """A sphere under a non-uniform scale, drawn as an exact ellipsoid of the sphere set
+    (``sphere_set=1``): its silhouette's inside function is taken in its object space
+    (hits.py ``sphere_frame``); the same tolerances as the sphere's."""
+    text = FLAT + "rotateZ 30\nscale 1.2 0.7 0.9\nsphere\n"
+    key, direction, h = "camera.eye", (0.6, 0.0, -0.8), 0.03
+    assert "spheres" in loaded(mi, text, 1, sphere_set=1).scene_dict
+    reference = finite_difference(mi, text, key, direction, h, sphere_set=1)
+    w = weights()
+    grad = forward(mi, text, key, direction, 16, sphere_set=1)
+    assert abs(np.sum(w * (grad - reference))) < 0.05 * np.sum(np.abs(w * reference))
+    assert relative_l2(grad, reference) < 0.15
+
+
 def test_the_primal_image_does_not_change_by_a_bit(mi):
     import drjit as dr
     import raymitsuba
