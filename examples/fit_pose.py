@@ -80,7 +80,24 @@ def main(argv=None):
               f"{show(result.fitted[key]):>24s}")
     print(f"\n{result.iterations} iterations, {seconds:.1f} s, loss {result.losses[0]:.3e} -> "
           f"{result.final_loss:.3e}")
+    across, along = lookat_error(true_values, result.fitted)
+    print(f"camera.lookat error across the line of sight {across:.2e}, along it {along:.2e} "
+          f"(moving the look-at point along the line of sight changes no pixel: that part "
+          f"cannot be recovered from an image)")
     return result, true_values
+
+
+def lookat_error(true_values, fitted):
+    """(|error across the true line of sight|, |error along it|) of the fitted look-at point:
+    the image depends on the eye, the direction from it to the look-at point, the up vector
+    and the fov, not on how far along that direction the look-at point lies."""
+    import numpy as np
+
+    eye, lookat = (np.asarray(true_values[k], float) for k in KEYS)
+    view = (lookat - eye) / np.linalg.norm(lookat - eye)
+    error = np.asarray(fitted["camera.lookat"], float) - lookat
+    along = float(error @ view)
+    return float(np.linalg.norm(error - along * view)), abs(along)
 
 
 if __name__ == "__main__":
