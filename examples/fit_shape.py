@@ -1,6 +1,6 @@
 """Recover where a sphere is, and how large, from an image (geometry keys, edges and all).
 
-    ./dev python examples/fit_shape.py [--iters 100] [--size 64] [--spp 16] [--lr 0.02]
+    ./dev python examples/fit_shape.py [--iters 100] [--size 64] [--spp 16] [--lr 0.05]
 
 A Phong sphere stands on a lit floor and casts a shadow. The target is rendered with the
 sphere at ``translate2.offset`` = (0.2, 0, 0) and ``scale2.factors`` = 0.8 (uniform); the fit
@@ -45,7 +45,7 @@ def main(argv=None):
     parser.add_argument("--iters", type=int, default=100, help="Adam steps (default 100)")
     parser.add_argument("--size", type=int, default=64, help="image width (default 64)")
     parser.add_argument("--spp", type=int, default=16, help="samples per pixel, k^2 (default 16)")
-    parser.add_argument("--lr", type=float, default=0.02, help="relative learning rate (default 0.02)")
+    parser.add_argument("--lr", type=float, default=0.05, help="relative learning rate (default 0.05)")
     parser.add_argument("--quiet", action="store_true", help="no per-iteration progress")
     args = parser.parse_args(argv)
 
