@@ -1,6 +1,7 @@
 """Recover the refractivity kt and the index of refraction eta of a glass sphere.
 
     ./dev python examples/fit_glass.py [--iters 150] [--size 64] [--lr 0.02]
+    ./dev python examples/fit_glass.py --checker 0.4 [--scan 1.0:2.0:12]
 
 A glass sphere stands in front of a wall lit by two colored point lights placed
 between the sphere and the wall, so the wall is a smooth color gradient and the
@@ -16,16 +17,18 @@ inverts the wall). The derivative with respect to eta is therefore
 d(wall color)/d(wall point) x d(wall point)/d(eta): it exists only because the
 wall's shading varies smoothly from point to point.
 
-**A checkerboard background.** The classic picture (a glass ball over a checkered floor)
-is piecewise constant in the wall point: inside a square the color does not change as the
-refracted ray moves, so all the information about eta lies in the checker *edges* moving
-across pixels. With ``--spp k^2`` lattices the derivative includes them (the boundary
-terms along the specular chain, plugins/whitted/boundary.py; docs/gradients.md measures
-them), but an L2 fit of eta from 1.15 to 1.5 on such a wall does not get there: the loss
-is full of local minima (each checker square seen through the ball is a basin). Measured
-with this scene's wall made a checkerboard (``checkerboard 0.4``) under ambient light, 32 x
-32, spp 16, 60 steps, coarse to fine over 3 levels: eta went to 1.06. With a smoothly lit
-background every pixel carries a derivative and the fit converges.
+**A checkerboard background** (``--checker SIZE``: the wall checkered). The classic
+picture (a glass ball in front of a checkered wall) is piecewise constant in the wall
+point: inside a square the color does not change as the refracted ray moves, so most of
+the information about eta lies in the checker *edges* moving across pixels. With
+``--spp k^2`` lattices the derivative includes them (the boundary terms along the specular
+chain, plugins/whitted/boundary.py; docs/gradients.md measures them), but the loss is full
+of basins: each checker square seen through the ball makes one. Scanned at kt = 0.5 (the
+start) with ``checkerboard 0.4``, 64 x 64, spp 16, the loss has its least value at eta =
+1.5 in a basin from about 1.35 to 1.7, and a barrier at about 1.25: from 1.15 the steps
+alone walk away from it (to 1.13, or 1.06 coarse to fine). So with ``--checker`` the fit
+first scans eta (``--scan LOW:HIGH:N``, default 1.0:2.0:12, spacing 0.09: finer than the
+basin; :class:`raymitsuba.fit.Scan`), starting the steps from the best of the 12 renders.
 
 The glass has no diffuse or specular term (kd = ks = 0) and kr = 0: a highlight
 seen on the inside of the sphere ends where N.L crosses 0, another moving
@@ -63,17 +66,29 @@ def main(argv=None):
     parser.add_argument("--iters", type=int, default=150, help="Adam steps (default 150)")
     parser.add_argument("--size", type=int, default=64, help="image width and height (default 64)")
     parser.add_argument("--lr", type=float, default=0.02, help="relative learning rate (default 0.02)")
+    parser.add_argument("--checker", type=float, default=None, metavar="SIZE",
+                        help="checker the wall with squares of SIZE (then eta is scanned first)")
+    parser.add_argument("--scan", default="1.0:2.0:12", metavar="LOW:HIGH:N",
+                        help="with --checker: the values of eta tried before the steps "
+                             "(default 1.0:2.0:12; 'none': no scan)")
+    parser.add_argument("--spp", type=int, default=None, help="samples per pixel (default 1; "
+                        "with --checker 16, a 4 x 4 lattice: the checker edges' derivatives)")
     parser.add_argument("--quiet", action="store_true", help="no per-iteration progress")
     args = parser.parse_args(argv)
 
     import raymitsuba
-    from raymitsuba.fit import fit, model_values, set_values
+    from raymitsuba.fit import Scan, fit, model_values, set_values
 
-    truth = raymitsuba.load(TRUE_SCENE, width=args.size, height=args.size)
+    scene = TRUE_SCENE if args.checker is None else TRUE_SCENE.replace(
+        "translate 0 0 -3\n", f"translate 0 0 -3\ncheckerboard {args.checker:g}\n")
+    spp = args.spp or (1 if args.checker is None else 16)
+    scan = [] if args.checker is None or args.scan == "none" else \
+        [Scan.parse("mat2.ior=" + args.scan)]
+    truth = raymitsuba.load(scene, width=args.size, height=args.size, spp=spp)
     target = raymitsuba.render(truth).numpy()
     true_values = model_values(truth.model, KEYS)
 
-    loaded = raymitsuba.load(TRUE_SCENE, width=args.size, height=args.size)
+    loaded = raymitsuba.load(scene, width=args.size, height=args.size, spp=spp)
     set_values(loaded, START)  # the perturbed start
 
     def progress(step):
@@ -82,12 +97,17 @@ def main(argv=None):
             print(f"iter {step.iteration:4d}  loss {step.loss:.3e}  {values}")
 
     started = time.perf_counter()
-    result = fit(loaded, target, KEYS, iters=args.iters, lr=args.lr, callback=progress)
+    result = fit(loaded, target, KEYS, iters=args.iters, lr=args.lr, callback=progress,
+                 scan=scan)
     seconds = time.perf_counter() - started
+    if result.scanned:
+        best, loss = min(result.scanned, key=lambda item: item[1])
+        print(f"scanned eta over {len(result.scanned)} values: best {best['mat2.ior']:.4f} "
+              f"(loss {loss:.3e}); the steps started there")
 
     print(f"\n{'parameter':20s} {'true':>8s} {'start':>8s} {'fitted':>8s}")
     for key in KEYS:
-        print(f"{key:20s} {true_values[key]:8.4f} {result.start[key]:8.4f} "
+        print(f"{key:20s} {true_values[key]:8.4f} {START[key]:8.4f} "
               f"{result.fitted[key]:8.4f}")
     print(f"\n{result.iterations} iterations, {seconds:.1f} s, loss {result.losses[0]:.3e} -> "
           f"{result.final_loss:.3e}")

@@ -37,6 +37,16 @@ Note that some parameters are only jointly determined by an image (a material's
 color times its diffuse mix times the light's color): fitting all of them lowers
 the loss but need not recover each one; pick ``keys`` accordingly.
 
+**A scan before the steps** (``scan``, :class:`Scan`; ``--scan KEY=LOW:HIGH:N``): a
+gradient only sees the loss near the current values, and some losses have many basins --
+eta behind glass in front of a checkerboard is one: each checker square seen through the
+ball makes its own, and from eta = 1.15 the steps walk away from 1.5 (a barrier at about
+1.25). A scan renders the scene at each value of a grid of the scanned scalar keys (their
+product: every combination), the other keys at their start, and the steps start from the
+combination of least loss. The grid's spacing must be finer than the true basin's width
+(for the glass ball, about 0.3 in eta); the steps then place the key exactly. The scan
+costs one primal render per combination (no derivatives); at most :data:`MAX_SCAN`.
+
 **Writing back**: :func:`rewrite_scene` (from :mod:`raymitsuba.format.writeback`, which
 says how) puts the fitted numbers into the .RAY text, every other byte unchanged.
 """
@@ -58,7 +68,7 @@ from raymitsuba.format.writeback import (MATERIAL_FIELDS, ParameterError, Value,
                                          parse_key, rewrite_scene, writable_keys)
 from raymitsuba.model import Scene
 
-__all__ = ["FitError", "FitResult", "Step", "LOWER_BOUNDS", "MATERIAL_FIELDS", "Value",
+__all__ = ["FitError", "FitResult", "MAX_SCAN", "Scan", "Step", "LOWER_BOUNDS", "MATERIAL_FIELDS", "Value",
            "clamp_value", "coarse", "default_keys", "downsampled", "level_of", "field_of", "fit", "model_values", "parameter_error",
            "rewrite_scene", "select_keys", "set_values", "to_python", "writable_keys",
            "write_scene"]
@@ -72,6 +82,9 @@ LOWER_BOUNDS: Dict[str, Optional[float]] = {
     # eye, lookat and up -- are free)
     "radius": 1e-6, "fov": 1e-3,
 }
+
+#: The most combinations a scan may render (each is one render of the scene).
+MAX_SCAN = 10_000
 
 #: What a request the fit cannot carry out raises (an unknown key, a wrong target size, a
 #: key with no line to write back to...): one class with the write-back's errors.
@@ -178,10 +191,42 @@ class Step:
     values: Dict[str, Value]
 
 
+@dataclass(frozen=True)
+class Scan:
+    """A grid of ``count`` evenly spaced values of the scalar key ``key``, from ``low`` to
+    ``high`` inclusive, tried before the gradient steps (see the module docstring)."""
+
+    key: str
+    low: float
+    high: float
+    count: int
+
+    @classmethod
+    def parse(cls, text: str) -> "Scan":
+        """``KEY=LOW:HIGH:COUNT``, as ``--scan`` takes it (FitError if malformed)."""
+        key, _, grid = text.partition("=")
+        parts = grid.split(":")
+        try:
+            if not key.strip() or len(parts) != 3:
+                raise ValueError
+            low, high, count = float(parts[0]), float(parts[1]), int(parts[2])
+        except ValueError:
+            raise FitError(f"--scan `{text}`: write KEY=LOW:HIGH:COUNT, e.g. "
+                           f"mat2.ior=1.0:2.0:12") from None
+        return cls(key.strip(), low, high, count)
+
+    def values(self) -> List[float]:
+        if not (math.isfinite(self.low) and math.isfinite(self.high) and self.low < self.high
+                and self.count >= 2):
+            raise FitError(f"the scan of `{self.key}` needs LOW < HIGH, both finite, and at "
+                           f"least 2 values")
+        return [float(v) for v in np.linspace(self.low, self.high, self.count)]
+
+
 @dataclass
 class FitResult:
     keys: List[str]
-    start: Dict[str, Value]  # the values before the first step
+    start: Dict[str, Value]  # the values before the first step (after the scan, if any)
     fitted: Dict[str, Value]  # the values after the last step (clamped)
     history: List[Step] = field(default_factory=list)
     final_loss: float = math.nan  # the loss of ``fitted``
@@ -189,6 +234,8 @@ class FitResult:
     fitted_image: Optional[np.ndarray] = None
     iterations: int = 0
     seconds: float = 0.0
+    # the scan's combinations ({key: value}) and their losses, in order (empty: no scan)
+    scanned: List[tuple] = field(default_factory=list)
 
     @property
     def losses(self) -> List[float]:
@@ -199,7 +246,7 @@ class FitResult:
 def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
         lr: float = 0.02, spp: Optional[int] = None,
         callback: Optional[Callable[[Step], Optional[bool]]] = None,
-        final_lr: float = 0.1, levels: int = 1) -> FitResult:
+        final_lr: float = 0.1, levels: int = 1, scan: Sequence[Scan] = ()) -> FitResult:
     """Fit the parameters ``keys`` of ``loaded`` (see :func:`raymitsuba.load`) to the linear
     (H, W, 3) image ``target`` by Adam on the mean squared error; ``iters`` steps of
     learning rate ``lr`` (relative, see the module docstring), decaying geometrically to
@@ -210,7 +257,10 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
 
     ``levels`` > 1: coarse to fine (see :func:`level_of`): the first steps compare the
     render and the target averaged over blocks of 2^(levels - 1) pixels, then 2^(levels -
-    2)..., the last share at full resolution."""
+    2)..., the last share at full resolution.
+
+    ``scan``: grids of scalar keys among ``keys`` tried first (:class:`Scan`); the steps
+    start from their best combination."""
     import drjit as dr
 
     from raymitsuba.api import render
@@ -237,8 +287,10 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
         raise FitError("need iters >= 0 and lr > 0")
     spp = int(spp or loaded.options.spp)
     target_tensor = mi.TensorXf(target)
+    grids = scan_grids(scan, keys, params)
 
     started = time.perf_counter()
+    scanned = run_scan(loaded, grids, target, spp) if grids else []
     optimizer = mi.ad.Adam(lr=lr)
     start, scales = {}, {}
     for key in keys:
@@ -252,7 +304,7 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     fitted = loaded.traverse()
     fitted.keep([re.escape(key) + "$" for key in keys])
 
-    result = FitResult(keys=keys, start=start, fitted=dict(start))
+    result = FitResult(keys=keys, start=start, fitted=dict(start), scanned=scanned)
     for iteration in range(iters):
         image = render(loaded, spp=spp, params=fitted)
         factor = 2 ** level_of(iteration, iters, levels)
@@ -297,6 +349,48 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     result.final_loss = float(np.mean(np.square(final.astype(np.float64) - target)))
     result.seconds = time.perf_counter() - started
     return result
+
+
+def scan_grids(scan: Sequence[Scan], keys: List[str], params) -> Dict[str, List[float]]:
+    """{key: its values} of the scans, checked: scalar keys among ``keys``, each once, at
+    most MAX_SCAN combinations in all (FitError otherwise, before anything is rendered)."""
+    grids: Dict[str, List[float]] = {}
+    for item in scan:
+        if item.key not in keys:
+            raise FitError(f"the scanned key `{item.key}` is not among the fitted keys "
+                           f"({', '.join(keys)})")
+        if item.key in grids:
+            raise FitError(f"`{item.key}` is scanned twice")
+        if not isinstance(to_python(params[item.key]), float):
+            raise FitError(f"`{item.key}` is not a number: only scalar keys can be scanned")
+        grids[item.key] = [clamp_value(item.key, v) for v in item.values()]
+    combinations = math.prod(len(v) for v in grids.values())
+    if combinations > MAX_SCAN:
+        raise FitError(f"the scan has {combinations} combinations, more than {MAX_SCAN} "
+                       f"(one render each)")
+    return grids
+
+
+def run_scan(loaded, grids: Dict[str, List[float]], target: np.ndarray, spp: int) -> List[tuple]:
+    """Render ``loaded`` at every combination of ``grids`` and leave it at the one of least
+    loss (the mean squared error against ``target``); returns [({key: value}, loss)] in
+    order (the first of equal losses wins)."""
+    import itertools
+
+    import drjit as dr
+
+    from raymitsuba.api import render
+
+    keys = list(grids)
+    out = []
+    with dr.suspend_grad():
+        for combination in itertools.product(*(grids[k] for k in keys)):
+            values = dict(zip(keys, combination))
+            set_values(loaded, values)
+            image = render(loaded, spp=spp).numpy()
+            out.append((values, float(np.mean(np.square(image.astype(np.float64) - target)))))
+    set_values(loaded, min(out, key=lambda item: item[1])[0])
+    return out
 
 
 def level_of(iteration: int, iters: int, levels: int) -> int:

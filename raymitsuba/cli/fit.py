@@ -65,6 +65,11 @@ def show(value) -> str:
                    "the first comparing images averaged over 2^(levels-1) pixel blocks (so that "
                    "an object far from its place in the target still gets a gradient), the "
                    "last at full resolution.")
+@click.option("--scan", "scans", multiple=True, metavar="KEY=LOW:HIGH:N",
+              help="Before the steps (one scene), render N evenly spaced values of the scalar "
+                   "key KEY from LOW to HIGH (repeatable: every combination) and start from "
+                   "the best: for losses with many basins, such as eta behind glass in front "
+                   "of a checkerboard (e.g. mat2.ior=1.0:2.0:12).")
 @render_options("spp", "max_depth", "aa", "memory_budget", "sphere_set")
 @click.option("--truth", default=None, type=click.Path(dir_okay=False),
               help="The true scene (same structure): also print each parameter's error.")
@@ -75,7 +80,7 @@ def show(value) -> str:
 @click.option("-q", "--quiet", is_flag=True, help="Print only the final summary.")
 @batch_options()
 @dialect_option
-def fit(scenes, target, output, keys, iters, lr, levels, truth, plot, quiet, dialect,
+def fit(scenes, target, output, keys, iters, lr, levels, scans, truth, plot, quiet, dialect,
         **options):
     """Fit parameters of the .RAY file SCENE so that its render matches TARGET.
 
@@ -88,12 +93,13 @@ def fit(scenes, target, output, keys, iters, lr, levels, truth, plot, quiet, dia
     batch = {name: options.pop(name) for name in BATCH_OPTIONS}
     if len(scenes) == 1 and not any(batch.values()) and "{" not in target + output:
         return fit_one(scenes[0], target, output, keys, iters, lr, truth, plot, quiet,
-                       dialect, options, levels)
+                       dialect, options, levels, scans)
     if truth is not None or plot is not None:
         raise click.BadParameter("--truth and --plot are for one scene",
                                  param_hint="--truth/--plot")
-    if levels != 1:
-        raise click.BadParameter("--levels is for one scene", param_hint="--levels")
+    if levels != 1 or scans:
+        raise click.BadParameter("--levels and --scan are for one scene",
+                                 param_hint="--levels/--scan")
     from raymitsuba.batch.templates import TemplateError, expand, fill
 
     try:
@@ -125,9 +131,16 @@ def run_batch(scenes, targets, outputs, keys, iters, lr, dialect, batch, options
 
 
 def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, options,
-            levels=1):
+            levels=1, scans=()):
     """Today's single fit, in this process."""
     from raymitsuba import fit as fitting
+
+    try:
+        scans = [fitting.Scan.parse(text) for text in scans]
+        for item in scans:
+            item.values()  # (its range checked before the scene is read)
+    except fitting.FitError as e:
+        raise click.BadParameter(str(e), param_hint="--scan")
 
     if plot is not None and os.path.splitext(plot)[1].lower() not in PLOT_FORMATS:
         raise click.BadParameter(f"{plot}: use one of {', '.join(PLOT_FORMATS)}",
@@ -142,6 +155,10 @@ def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect,
     if not selected:
         fail("nothing to fit: the scene has no `material` (or `surface`) line used by an object and no light; "
              "name parameters with --params")
+    for item in scans:
+        if item.key not in selected:
+            fail(f"--scan: `{item.key}` is not among the fitted parameters "
+                 f"({', '.join(selected)})")
     truth_values = None
     if truth is not None:
         truth_model, truth_data = parse_scene(truth, dialect)
@@ -179,7 +196,7 @@ def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect,
         backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
         loaded = api.load(model, width=width, height=height, **options)
         result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, callback=progress,
-                             levels=levels)
+                             levels=levels, scan=scans)
         fitted_text = fitting.rewrite_scene(data, model, result.fitted)
         if plot is not None:
             write_plot(plot, target_image, result, srgb)
@@ -195,6 +212,10 @@ def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect,
     except Exception as e:  # Mitsuba's own errors (e.g. a texture it cannot decode)
         fail(f"{scene}: {common.error_message(e)}", EXIT_FAILURE)
 
+    if result.scanned:
+        best, loss = min(result.scanned, key=lambda item: item[1])
+        click.echo(f"scanned {len(result.scanned)} combination(s): best " + "  ".join(
+            f"{key}={show(value)}" for key, value in best.items()) + f"  loss {loss:.6e}")
     click.echo(f"fitted {len(selected)} parameter(s) in {result.iterations} iterations, "
                f"{result.seconds:.1f} s: loss {result.losses[0]:.6e} -> {result.final_loss:.6e}")
     for key in selected:

@@ -115,6 +115,26 @@ class TestCommand:
         assert not any(name.startswith(".raymitsuba-") for name in os.listdir(tmp))
 
 
+def test_a_scan_runs_first_and_a_bad_one_exits_2(files):
+    tmp, start, true, target = files
+    out = tmp / "fitted.ray"
+    result = run(start, "--target", target, "--params", "mat1.diffuse_mix", "--iters", 5,
+                 "--scan", "mat1.diffuse_mix=0:1:5", "-o", out, "-q")
+    assert result.exit_code == 0, result.output + result.stderr
+    assert "scanned 5 combination(s): best mat1.diffuse_mix=0.75" in result.stdout
+    assert "mat1.diffuse_mix: 0.75 ->" in result.stdout
+    out.unlink()
+    for scan, expect in (("mat1.diffuse_mix=1:0:5", "LOW < HIGH"),
+                         ("mat1.diffuse_mix", "KEY=LOW:HIGH:COUNT"),
+                         ("mat1.phong_coeff=1:30:4", "not among the fitted parameters")):
+        result = run(start, "--target", target, "--params", "mat1.diffuse_mix", "--iters", 1,
+                     "--scan", scan, "-o", out)
+        assert result.exit_code == 2, (scan, result.output)
+        assert expect in result.output + result.stderr
+        assert "Traceback" not in result.output + result.stderr
+        assert not out.exists()
+
+
 def test_antialiasing_and_a_memory_budget_pass_through(files, monkeypatch):
     from raymitsuba import api
 
