@@ -77,6 +77,18 @@ material 1 1 1 0 0 0 1 0 0.9 1.5
 sphere
 """
 
+# a shiny sphere lit from behind on the left: the terminator (N.L = 0, where the specular
+# term is cut off) crosses the disk
+TERMINATOR = """\
+eye 0 0 5
+fov 40
+background 0.2 0.3 0.4
+light 1 1 1 point -5 0.3 -1
+light 0.2 0.2 0.2 ambient
+material 0.8 0.4 0.3 0.2 0.3 0.8 1 0 0 1
+sphere
+"""
+
 # (kind of edge, parameter, scene, key, direction, step moving edges ~0.1 px at 32 x 24)
 CASES = [
     ("silhouette", "sphere centre", MIT_SPHERE, "sphere1.center", (0.6, -0.8, 0.0), 0.03),
@@ -89,6 +101,8 @@ CASES = [
     ("all primary", "lookat", SCENE, "camera.lookat", (0.6, -0.8, 0.0), 0.01),
     ("all primary", "fov", SCENE, "camera.fov", (1.0,), 0.1),
     ("shadow", "point light position", SCENE, "light1.position", (0.6, 0.0, -0.8), 0.05),
+    ("terminator", "point light position", TERMINATOR, "light1.position", (0.0, 0.6, 0.8),
+     0.05),
     ("checker seen through glass", "eta", GLASS, "mat2.ior", (1.0,), 0.002),
 ]
 

@@ -9,7 +9,8 @@ lattice, for these discontinuities:
 
 * **visibility**: silhouettes of analytic spheres, outlines of flat meshes (triangles),
   creases between two surfaces and between faces of a flat mesh that are not coplanar;
-* **shadow edges** of point, spot and directional lights on the surface seen;
+* **shadow edges** of point, spot and directional lights on the surface seen, and the
+  **terminator** (N.L = 0, where the specular term is cut off);
 * **checker lines** on the surface seen;
 * visibility edges and checker lines **seen along the specular chain**: the path that
   follows, from the surface seen, the refracted ray where kt > 0 (the reflected one under
@@ -18,7 +19,7 @@ lattice, for these discontinuities:
   reflection of an edge moves with the geometry and the camera).
 
 Not covered (left out, documented in docs/gradients.md): total internal reflection
-switching on or off, the specular cut-off at N.L = 0, the spot's cone at s = 0, shadow
+switching on or off, the spot's cone at s = 0, shadow
 edges seen in mirrors or through glass, the branches of the tree other than the specular
 chain, and a pair of samples with two edges between them.
 
@@ -40,7 +41,9 @@ chosen, whose sign differs between the two samples:
   edge functions for a triangle; else the other surface's; else (both rays meet both
   primitives: a crease) the difference of the two primitives' hit distances;
 * a shadow edge of light j: the blocking primitive's inside function on the two samples'
-  shadow rays (from the attached hit point toward the attached light);
+  shadow rays (from the attached hit point toward the attached light); where the unlit
+  sample is unlit because it faces away from the light (no blocker), N.L at the attached
+  hit (the shading normal facing the ray);
 * a checker line: u / size - m (or v), m the line between the two cells, of the attached
   texture coordinates;
 * the same at bounce d of the specular chain, each sample's chain replayed with
@@ -502,22 +505,26 @@ class Boundary:
         count = len(kind)
         choice = self.visibility(table, rays, (self.shape[L], self.prim[L], self.t[L]),
                                  (self.shape[R], self.prim[R], self.t[R]))
-        # shadows: the blocking primitive's inside function on the shadow rays
+        # shadows: the blocking primitive's inside function on the shadow rays; where the
+        # unlit sample has no blocker, it faces away from the light: the terminator, N.L
         if len(self.lights):
             blocked_l = ~self.lit[light, L[0], L[1]]
             blocker = np.where(blocked_l[:, None], self.occluder[light, L[0], L[1]],
                                self.occluder[light, R[0], R[1]])
+            terminator = jit_array(mi.Bool, blocker[:, 0] == NO_HIT)
             for j, source in enumerate(self.lights):
                 mask = (kind == SHADOW) & (light == j)
                 if not mask.any():
                     continue
-                shadows = []
-                for si in his:
+                shadows, facing = [], []
+                for ray, si in zip(rays, his):
                     wi, _, _ = source.illuminate(si.p)
                     shadows.append(mi.Ray3f(si.p, wi))
+                    facing.append(dr.dot(self.tracer.facing_normal(si, ray), wi))
                 edge = self.crossed_edge(table, shadows, blocker[:, 0], blocker[:, 1])
                 for i, shadow in enumerate(shadows):
                     gs = self.inside(table, shadow, blocker[:, 0], blocker[:, 1], edge)
+                    gs = dr.select(terminator, facing[i], gs)
                     choice[i] = dr.select(jit_array(mi.Bool, mask), gs, choice[i])
         # checker lines
         if (kind == CHECKER).any():

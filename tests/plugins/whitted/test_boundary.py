@@ -1,12 +1,14 @@
 """Boundary terms (plugins/whitted/boundary.py): the derivative of the pixel-integrated
-image where edges move -- silhouettes, outlines, shadow edges, checker lines -- against
+image where edges move -- silhouettes, outlines, shadow edges, the terminator, checker
+lines -- against
 closed forms and finite differences of a 64 x 64 lattice (see tests/support_edges.py for
 why that reference is good to 1-2 %).
 
 Tolerances: the AD estimate on the k x k lattice (k = 4 here) is exact for straight edges
 up to the quadrature of the edge over k rows per pixel (measured < 0.5 % on the closed
 forms). Against the reference, at k = 4, per-pixel relative L2 errors measured: silhouette
-2.7 %, camera 1.8 %, shadow 3.1 %, checker 12.6 % (pixels where two checker lines pass
+2.7 %, camera 1.8 %, shadow 3.1 %, terminator 3.8 %, checker 12.6 % (pixels where two
+checker lines pass
 between two samples: such pairs are left out, and straight lines alias in the reference
 itself); weighted sums with fixed random weights: within 0.3-2.4 % of the reference's sum
 of term sizes. Asserted: 5 % and 15 %.
@@ -51,6 +53,17 @@ reset
 material 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1
 translate 0.2 0 0
 scale 0.8 0.8 0.8
+sphere
+"""
+# a shiny sphere lit from behind on the left: the terminator (N.L = 0) crosses the disk, and
+# the specular term (ks (R.V)^n, n = 1) is cut off there
+TERMINATOR = """\
+eye 0 0 5
+fov 40
+background 0.2 0.3 0.4
+light 1 1 1 point -5 0.3 -1
+light 0.2 0.2 0.2 ambient
+material 0.8 0.4 0.3 0.2 0.3 0.8 1 0 0 1
 sphere
 """
 CHECKER = """\
@@ -99,7 +112,8 @@ def test_a_slanted_edge_moves_by_its_closed_form(mi):
     (SPHERE, "camera.eye", (0.6, 0.0, -0.8), 0.03),  # the same, from the camera
     (SHADOW, "light1.position", (0.6, 0.0, -0.8), 0.05),  # a shadow edge and shading
     (CHECKER, "camera.eye", (0.6, 0.0, -0.8), 0.02),  # checker lines
-], ids=["silhouette", "camera", "shadow", "checker"])
+    (TERMINATOR, "light1.position", (0.0, 0.6, 0.8), 0.05),  # the terminator, N.L = 0
+], ids=["silhouette", "camera", "shadow", "checker", "terminator"])
 def test_moving_edges_match_finite_differences(mi, text, key, direction, h):
     reference = finite_difference(mi, text, key, direction, h)
     w = weights()
