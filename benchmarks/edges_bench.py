@@ -89,6 +89,23 @@ material 0.8 0.4 0.3 0.2 0.3 0.8 1 0 0 1
 sphere
 """
 
+# Snell's window: looking up from under a glass surface, total internal reflection switches
+# on at the critical angle (inside the window the sky, outside the lit floor reflected)
+SNELL = """\
+eye 0 -1 0
+lookat 0 0 0
+up 0 0 1
+fov 120
+background 0.1 0.2 0.6
+light 1 0.9 0.8 point 0 -2 0
+light 0.2 0.2 0.2 ambient
+material 1 1 1 0 0 0 1 0 0.9 1.33
+plane
+material 0.9 0.6 0.3 0.3 0.7 0 1 0 0 1
+translate 0 -3 0
+plane
+"""
+
 # (kind of edge, parameter, scene, key, direction, step moving edges ~0.1 px at 32 x 24)
 CASES = [
     ("silhouette", "sphere centre", MIT_SPHERE, "sphere1.center", (0.6, -0.8, 0.0), 0.03),
@@ -104,6 +121,7 @@ CASES = [
     ("terminator", "point light position", TERMINATOR, "light1.position", (0.0, 0.6, 0.8),
      0.05),
     ("checker seen through glass", "eta", GLASS, "mat2.ior", (1.0,), 0.002),
+    ("total internal reflection", "eta", SNELL, "mat1.ior", (1.0,), 0.002),
 ]
 
 

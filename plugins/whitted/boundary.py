@@ -12,14 +12,14 @@ lattice, for these discontinuities:
 * **shadow edges** of point, spot and directional lights on the surface seen, and the
   **terminator** (N.L = 0, where the specular term is cut off);
 * **checker lines** on the surface seen;
-* visibility edges and checker lines **seen along the specular chain**: the path that
+* visibility edges and checker lines **seen along the specular chain**, and **total
+  internal reflection** switching on or off along it: the path that
   follows, from the surface seen, the refracted ray where kt > 0 (the reflected one under
   total internal reflection), else the reflected ray where kr > 0, up to CHAIN_DEPTH
   bounces (so eta's derivative sees the checker lines seen through glass, and a mirror's
   reflection of an edge moves with the geometry and the camera).
 
-Not covered (left out, documented in docs/gradients.md): total internal reflection
-switching on or off, the spot's cone at s = 0, shadow
+Not covered (left out, documented in docs/gradients.md): the spot's cone at s = 0, shadow
 edges seen in mirrors or through glass, the branches of the tree other than the specular
 chain, and a pair of samples with two edges between them.
 
@@ -47,7 +47,9 @@ chosen, whose sign differs between the two samples:
 * a checker line: u / size - m (or v), m the line between the two cells, of the attached
   texture coordinates;
 * the same at bounce d of the specular chain, each sample's chain replayed with
-  derivatives (eta, the geometry, the camera) to that bounce.
+  derivatives (eta, the geometry, the camera) to that bounce; where total internal
+  reflection switches at a surface of the chain, the refraction margin 1 - (eta_i /
+  eta_t)^2 (1 - cos^2 theta_i) there.
 
 g is evaluated with derivatives (the camera's rays and the geometry as the keys attach them,
 ``geometry_ad.py``; the lights' own parameters) at the two samples L, R and, detached, at
@@ -83,7 +85,7 @@ from .tree import reflect, refract
 PAIRS_PER_CHUNK = 1 << 16
 NO_HIT = 0xFFFFFFFF
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
-VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER = 0, 1, 2, 3, 4
+VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR = 0, 1, 2, 3, 4, 5
 CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
 # host bytes of one sample's keys (shape, face, distance, normal, checker cell, color and,
 # per bounce of the chain, shape, face, distance, cell, TIR flag) and per light (lit, blocker)
@@ -290,6 +292,17 @@ class Boundary:
         cv = dr.select(checkered, dr.floor(si.uv.y / size), 0.0)
         return np.stack([cu.numpy(), cv.numpy()], -1).astype(np.int64)
 
+    def refraction_margin(self, terms, si, ray):
+        """1 - sin^2 of the refracted angle at the hit ``si`` of ``ray``, 1 - (eta_i /
+        eta_t)^2 (1 - cos^2 theta_i): > 0 where the ray refracts, <= 0 under total internal
+        reflection (as ``tree.refract`` decides it). Attached as ``si`` and ``ray`` are."""
+        hit = si.is_valid()
+        slot = terms.surfaces.slot(si.shape, si.prim_index, hit)
+        eta = terms.surfaces.get("ior", slot, hit)
+        v, n = -ray.d, self.tracer.facing_normal(si, ray)
+        ratio = dr.select(dr.dot(si.n, ray.d) < 0, dr.rcp(eta), eta)
+        return 1.0 - dr.square(ratio) * (1.0 - dr.square(dr.dot(n, v)))
+
     def chain_step(self, terms, si, ray):
         """The next ray of the *specular chain* from the hit ``si`` of ``ray``: the refracted
         ray where the surface has kt > 0 (the reflected one under total internal reflection),
@@ -342,8 +355,9 @@ class Boundary:
             kind[checker] = CHECKER
             kind[same & (edges > 1)] = -1
             # Seen along the specular chain (mirrors, glass): the first bounce whose key
-            # differs, if the first hits are alike; a pair whose chains differ in total
-            # internal reflection, or across two edges at that bounce, is left out.
+            # differs, if the first hits are alike: total internal reflection switching at
+            # the surface the bounce leaves, else a visibility edge or one checker line (a
+            # pair across two edges at that bounce is left out).
             depth = np.full(visibility.shape, -1, np.int8)
             pending = same & (edges == 0)
             for d in range(CHAIN_DEPTH):
@@ -358,7 +372,11 @@ class Boundary:
                 ok &= (cs_l != STOP) & (cs_r != STOP)
                 kind[ok & shape_differs] = CHAIN_VISIBILITY
                 kind[ok & ~shape_differs] = CHAIN_CHECKER
-                depth[ok] = d
+                # total internal reflection switching at the bounce's surface: what the two
+                # chains meet after it differs because of it
+                switch = here & tir
+                kind[switch] = CHAIN_TIR
+                depth[ok | switch] = d
                 pending &= ~here
             keep = kind >= 0
             ly, lx = np.nonzero(keep)  # (row-major: the order of the lattice)
@@ -556,25 +574,31 @@ class Boundary:
 
     def chain_crossing(self, table, terms, rays, his, L, R, kind, depth, g):
         """g of the pairs whose edge is seen along the specular chain, at bounce ``depth``:
-        each ray's chain replayed, attached, then the visibility or checker function there."""
-        finals = []
+        each ray's chain replayed, attached, then the visibility or checker function there,
+        or (total internal reflection switching) the refraction margin at the surface it
+        leaves."""
+        finals, margins = [], []
         for ray, si in zip(rays, his):
-            final_ray, final_si = ray, si
+            final_ray, final_si, margin = ray, si, mi.Float(0.0)
             for d in range(int(depth.max()) + 1):
+                at = jit_array(mi.Bool, depth == d)
+                margin = dr.select(at, self.refraction_margin(terms, si, ray), margin)
                 ray, _, _ = self.chain_step(terms, si, ray)
                 dr.eval(ray)
                 si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
-                at = jit_array(mi.Bool, depth == d)
                 final_ray = mi.Ray3f(dr.select(at, ray.o, final_ray.o),
                                      dr.select(at, ray.d, final_ray.d))
                 final_si = _merge(at, si, final_si)
             finals.append((final_ray, final_si))
+            margins.append(margin)
         d = np.maximum(depth, 0)
         left = tuple(a[d, L[0], L[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
         right = tuple(a[d, R[0], R[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
         vis = self.visibility(table, [r for r, _ in finals], left, right)
         mask = jit_array(mi.Bool, kind == CHAIN_VISIBILITY)
         g = [dr.select(mask, a, b) for a, b in zip(vis, g)]
+        mask = jit_array(mi.Bool, kind == CHAIN_TIR)
+        g = [dr.select(mask, a, b) for a, b in zip(margins, g)]
         if (kind == CHAIN_CHECKER).any():
             cl, cr = self.chain_cell[d, L[0], L[1]], self.chain_cell[d, R[0], R[1]]
             g = self.checker_crossing(terms, [s for _, s in finals], cl, cr,
