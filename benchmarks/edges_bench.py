@@ -89,6 +89,18 @@ material 0.8 0.4 0.3 0.2 0.3 0.8 1 0 0 1
 sphere
 """
 
+# a spotlight of coefficient 0 on a floor: its cone's edge (cos a = 0) crosses the image
+SPOT = """\
+eye 0 2 5
+lookat 0 -1 0
+fov 50
+background 0.2 0.3 0.4
+light 1 0.9 0.7 spotlight -0.5 0.5 0  1 -0.2 0.3  0
+light 0.2 0.2 0.2 ambient
+material 0.8 0.8 0.7 0.3 0.7 0 1 0 0 1
+translate 0 -1 0
+plane
+"""
 # Snell's window: looking up from under a glass surface, total internal reflection switches
 # on at the critical angle (inside the window the sky, outside the lit floor reflected)
 SNELL = """\
@@ -122,6 +134,8 @@ CASES = [
      0.05),
     ("checker seen through glass", "eta", GLASS, "mat2.ior", (1.0,), 0.002),
     ("total internal reflection", "eta", SNELL, "mat1.ior", (1.0,), 0.002),
+    ("spot cone", "spot position", SPOT, "light1.position", (0.6, 0.0, 0.8), 0.02),
+    ("spot cone", "spot direction", SPOT, "light1.direction", (0.0, 0.0, 1.0), 0.02),
 ]
 
 

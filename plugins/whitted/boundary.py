@@ -9,8 +9,9 @@ lattice, for these discontinuities:
 
 * **visibility**: silhouettes of analytic spheres, outlines of flat meshes (triangles),
   creases between two surfaces and between faces of a flat mesh that are not coplanar;
-* **shadow edges** of point, spot and directional lights on the surface seen, and the
-  **terminator** (N.L = 0, where the specular term is cut off);
+* **shadow edges** of point, spot and directional lights on the surface seen, the
+  **terminator** (N.L = 0, where the specular term is cut off) and a spot's **cone**
+  (cos a = 0, where a spot of coefficient 0 ends);
 * **checker lines** on the surface seen;
 * visibility edges and checker lines **seen along the specular chain**, and **total
   internal reflection** switching on or off along it: the path that
@@ -19,7 +20,7 @@ lattice, for these discontinuities:
   bounces (so eta's derivative sees the checker lines seen through glass, and a mirror's
   reflection of an edge moves with the geometry and the camera).
 
-Not covered (left out, documented in docs/gradients.md): the spot's cone at s = 0, shadow
+Not covered (left out, documented in docs/gradients.md): shadow
 edges seen in mirrors or through glass, the branches of the tree other than the specular
 chain, and a pair of samples with two edges between them.
 
@@ -42,8 +43,9 @@ chosen, whose sign differs between the two samples:
   primitives: a crease) the difference of the two primitives' hit distances;
 * a shadow edge of light j: the blocking primitive's inside function on the two samples'
   shadow rays (from the attached hit point toward the attached light); where the unlit
-  sample is unlit because it faces away from the light (no blocker), N.L at the attached
-  hit (the shading normal facing the ray);
+  sample has no blocker, it faces away from the light or lies outside a spot's cone: N.L
+  at the attached hit (the shading normal facing the ray), or the spot's cos a where its
+  sign differs between the two samples;
 * a checker line: u / size - m (or v), m the line between the two cells, of the attached
   texture coordinates;
 * the same at bounce d of the specular chain, each sample's chain replayed with
@@ -112,6 +114,12 @@ def wanted(tracer, scene):
             if value is not None and dr.grad_enabled(value):
                 return True
     return False
+
+
+def spot_cosine(light, wi):
+    """cos a of a spotlight at the points whose direction toward it is ``wi``: > 0 inside
+    its cone (light.py)."""
+    return dr.dot(dr.normalize(light.direction), -wi)
 
 
 def crossed(cell_l, cell_r):
@@ -267,6 +275,8 @@ class Boundary:
         for light in self.lights:
             wi, dist, _ = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
+            if getattr(light, "kind", None) == "spotlight":  # its cone, cos a > 0
+                active &= spot_cosine(light, wi) > 0
             shadow = self.tracer.spawn_ray(si, wi)
             shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
             blocker = scene.ray_intersect_preliminary(shadow, coherent=False, active=active)
@@ -524,25 +534,34 @@ class Boundary:
         choice = self.visibility(table, rays, (self.shape[L], self.prim[L], self.t[L]),
                                  (self.shape[R], self.prim[R], self.t[R]))
         # shadows: the blocking primitive's inside function on the shadow rays; where the
-        # unlit sample has no blocker, it faces away from the light: the terminator, N.L
+        # unlit sample has no blocker, it faces away from the light (the terminator, N.L)
+        # or lies outside a spot's cone (cos a)
         if len(self.lights):
             blocked_l = ~self.lit[light, L[0], L[1]]
             blocker = np.where(blocked_l[:, None], self.occluder[light, L[0], L[1]],
                                self.occluder[light, R[0], R[1]])
-            terminator = jit_array(mi.Bool, blocker[:, 0] == NO_HIT)
+            unblocked = jit_array(mi.Bool, blocker[:, 0] == NO_HIT)
             for j, source in enumerate(self.lights):
                 mask = (kind == SHADOW) & (light == j)
                 if not mask.any():
                     continue
-                shadows, facing = [], []
+                shadows, facing, cone = [], [], []
                 for ray, si in zip(rays, his):
                     wi, _, _ = source.illuminate(si.p)
                     shadows.append(mi.Ray3f(si.p, wi))
                     facing.append(dr.dot(self.tracer.facing_normal(si, ray), wi))
+                    if getattr(source, "kind", None) == "spotlight":
+                        cone.append(spot_cosine(source, wi))
+                if cone:  # a spot's cone edge (cos a = 0) rather than the terminator
+                    with dr.suspend_grad():
+                        dr.eval(cone[0], cone[1])
+                        crosses = np.sign(cone[0].numpy()) != np.sign(cone[1].numpy())
+                    facing = [dr.select(jit_array(mi.Bool, crosses), c, f)
+                              for c, f in zip(cone, facing)]
                 edge = self.crossed_edge(table, shadows, blocker[:, 0], blocker[:, 1])
                 for i, shadow in enumerate(shadows):
                     gs = self.inside(table, shadow, blocker[:, 0], blocker[:, 1], edge)
-                    gs = dr.select(terminator, facing[i], gs)
+                    gs = dr.select(unblocked, facing[i], gs)
                     choice[i] = dr.select(jit_array(mi.Bool, mask), gs, choice[i])
         # checker lines
         if (kind == CHECKER).any():
