@@ -101,6 +101,29 @@ material 0.8 0.8 0.7 0.3 0.7 0 1 0 0 1
 translate 0 -1 0
 plane
 """
+# a mirror floor reflecting a wall on which a sphere casts its shadow (seen directly and in
+# the mirror)
+MIRRORED_SHADOW = """\
+eye 0 1 6
+lookat 0 -0.5 0
+fov 45
+background 0.2 0.3 0.4
+light 1 1 1 point 1.5 1 4
+light 0.2 0.2 0.2 ambient
+material 0.1 0.1 0.1 0.2 0.2 0 1 0.9 0 1
+translate 0 -1 0
+plane
+reset
+material 0.9 0.8 0.6 0.3 0.7 0 1 0 0 1
+rotateX 90
+translate 0 0 -2
+plane
+reset
+material 0.8 0.4 0.3 0.3 0.7 0 1 0 0 1
+translate 0 0.8 0
+scale 0.6 0.6 0.6
+sphere
+"""
 # Snell's window: looking up from under a glass surface, total internal reflection switches
 # on at the critical angle (inside the window the sky, outside the lit floor reflected)
 SNELL = """\
@@ -134,6 +157,8 @@ CASES = [
      0.05),
     ("checker seen through glass", "eta", GLASS, "mat2.ior", (1.0,), 0.002),
     ("total internal reflection", "eta", SNELL, "mat1.ior", (1.0,), 0.002),
+    ("shadow seen in a mirror", "point light position", MIRRORED_SHADOW, "light1.position",
+     (0.6, 0.0, -0.8), 0.05),
     ("spot cone", "spot position", SPOT, "light1.position", (0.6, 0.0, 0.8), 0.02),
     ("spot cone", "spot direction", SPOT, "light1.direction", (0.0, 0.0, 1.0), 0.02),
 ]

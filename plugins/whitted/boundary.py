@@ -13,16 +13,15 @@ lattice, for these discontinuities:
   **terminator** (N.L = 0, where the specular term is cut off) and a spot's **cone**
   (cos a = 0, where a spot of coefficient 0 ends);
 * **checker lines** on the surface seen;
-* visibility edges and checker lines **seen along the specular chain**, and **total
-  internal reflection** switching on or off along it: the path that
+* visibility edges, shadow edges and checker lines **seen along the specular chain**, and
+  **total internal reflection** switching on or off along it: the path that
   follows, from the surface seen, the refracted ray where kt > 0 (the reflected one under
   total internal reflection), else the reflected ray where kr > 0, up to CHAIN_DEPTH
   bounces (so eta's derivative sees the checker lines seen through glass, and a mirror's
   reflection of an edge moves with the geometry and the camera).
 
-Not covered (left out, documented in docs/gradients.md): shadow
-edges seen in mirrors or through glass, the branches of the tree other than the specular
-chain, and a pair of samples with two edges between them.
+Not covered (left out, documented in docs/gradients.md): the branches of the tree other
+than the specular chain, and a pair of samples with two edges between them.
 
 **The lattice.** The samples of all pixels form one uniform grid over the image, spacing
 1/k pixel (sample (sx, sy) of pixel (px, py) is lattice point X = px k + sx, Y = py k + sy).
@@ -87,12 +86,12 @@ from .tree import reflect, refract
 PAIRS_PER_CHUNK = 1 << 16
 NO_HIT = 0xFFFFFFFF
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
-VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR = 0, 1, 2, 3, 4, 5
+VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW = range(7)
 CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
 # host bytes of one sample's keys (shape, face, distance, normal, checker cell, color and,
 # per bounce of the chain, shape, face, distance, cell, TIR flag) and per light (lit, blocker)
 BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 16 + 12 + CHAIN_DEPTH * (4 + 4 + 4 + 16 + 1)
-BYTES_PER_LIGHT = 1 + 8
+BYTES_PER_LIGHT = (1 + 8) * (1 + CHAIN_DEPTH)  # lit and blocker, first hit and chain
 STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
 LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
@@ -142,9 +141,11 @@ def _evaluated(si):
 
 
 def _merge(mask, si, other):
-    """The fields the boundary terms read (uv, shape, prim_index, t) of ``si`` where
-    ``mask``, else of ``other``."""
+    """The fields the boundary terms read (uv, shape, prim_index, t, p, n and the shading
+    normal) of ``si`` where ``mask``, else of ``other``."""
     out = dr.zeros(mi.SurfaceInteraction3f, dr.width(mask))
+    out.p, out.n = dr.select(mask, si.p, other.p), dr.select(mask, si.n, other.n)
+    out.sh_frame = mi.Frame3f(dr.select(mask, si.sh_frame.n, other.sh_frame.n))
     out.uv = dr.select(mask, si.uv, other.uv)
     out.shape = dr.select(mask, si.shape, other.shape)
     out.prim_index = dr.select(mask, si.prim_index, other.prim_index)
@@ -184,6 +185,10 @@ class Boundary:
         self.chain_t = np.full(depth, np.inf, np.float32)
         self.chain_cell = np.zeros(depth + (2,), np.int64)
         self.chain_tir = np.zeros(depth, bool)
+        # per bounce and light (index d * lights + j): lit, and what blocks it
+        lit = (CHAIN_DEPTH * len(self.lights),) + size
+        self.chain_lit = np.zeros(lit, bool)
+        self.chain_occluder = np.full(lit + (2,), NO_HIT, np.uint32)
 
     # -- the keys --------------------------------------------------------------------------------
     def lattice_points(self, job, start, count):
@@ -251,7 +256,7 @@ class Boundary:
                "normal": np.stack([c.numpy() for c in (si.n.x, si.n.y, si.n.z)], -1)}
         out["cell"] = self.checker_cell(terms, si, hit)
         chain = {name: [] for name in ("chain_shape", "chain_prim", "chain_t", "chain_cell",
-                                       "chain_tir")}
+                                       "chain_tir", "chain_lit", "chain_occluder")}
         ray_k, si_k, alive = rays, si, hit
         for _ in range(CHAIN_DEPTH):
             ray_k, go, tir = self.chain_step(terms, si_k, ray_k)
@@ -268,8 +273,18 @@ class Boundary:
             chain["chain_t"].append(dr.select(found, si_k.t, dr.inf).numpy())
             chain["chain_cell"].append(self.checker_cell(terms, si_k, found))
             chain["chain_tir"].append((alive & tir).numpy())
+            lit, occluder = self.light_keys(si_k, ray_k, found)
+            chain["chain_lit"] += lit
+            chain["chain_occluder"] += occluder
             alive = found
         out.update(chain)
+        out["lit"], out["occluder"] = self.light_keys(si, rays, hit)
+        return out
+
+    def light_keys(self, si, rays, hit):
+        """Per light, at the hits ``si`` of ``rays`` (numpy): whether it lights the point
+        (it faces the light, lies in a spot's cone and the shadow ray is free), and what
+        blocks it ((shape, prim); NO_HIT where nothing does)."""
         lit, occluder = [], []
         n = self.tracer.facing_normal(si, rays)
         for light in self.lights:
@@ -279,15 +294,14 @@ class Boundary:
                 active &= spot_cosine(light, wi) > 0
             shadow = self.tracer.spawn_ray(si, wi)
             shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
-            blocker = scene.ray_intersect_preliminary(shadow, coherent=False, active=active)
+            blocker = self.scene.ray_intersect_preliminary(shadow, coherent=False, active=active)
             blocked = active & blocker.is_valid()
             dr.eval(blocked, blocker.shape, blocker.prim_index)
             lit.append((active & ~blocked).numpy())
             occluder.append(np.stack([
                 dr.select(blocked, dr.reinterpret_array(mi.UInt32, blocker.shape), NO_HIT).numpy(),
                 blocker.prim_index.numpy()], -1))
-        out["lit"], out["occluder"] = lit, occluder
-        return out
+        return lit, occluder
 
     def checker_cell(self, terms, si, hit):
         """(floor(u / size), floor(v / size)) of each hit on a checkered surface, else (0, 0)."""
@@ -377,11 +391,19 @@ class Boundary:
                 tir = self.chain_tir[d][left] != self.chain_tir[d][right]
                 shape_differs = cs_l != cs_r
                 lines = crossed(self.chain_cell[d][left], self.chain_cell[d][right])
-                here = pending & (shape_differs | (lines > 0) | tir)
-                ok = here & ~tir & ((shape_differs & (lines >= 0)) | (lines == 1))
+                shadows = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
+                for j in range(len(self.lights)):
+                    lit = self.chain_lit[d * len(self.lights) + j]
+                    edge = ~shape_differs & (lit[left] != lit[right])
+                    shadows += edge
+                    light[pending & edge & ~tir] = j
+                here = pending & (shape_differs | (lines > 0) | tir | (shadows > 0))
+                ok = here & ~tir & ((shape_differs & (lines >= 0))
+                                    | ((lines + shadows) == 1))
                 ok &= (cs_l != STOP) & (cs_r != STOP)
                 kind[ok & shape_differs] = CHAIN_VISIBILITY
-                kind[ok & ~shape_differs] = CHAIN_CHECKER
+                kind[ok & ~shape_differs & (lines == 1)] = CHAIN_CHECKER
+                kind[ok & ~shape_differs & (shadows == 1)] = CHAIN_SHADOW
                 # total internal reflection switching at the bounce's surface: what the two
                 # chains meet after it differs because of it
                 switch = here & tir
@@ -455,7 +477,7 @@ class Boundary:
                    for ray in rays]
             g = self.crossing(table, terms, rays, his, L, R, kind, light)
             if (depth >= 0).any():
-                g = self.chain_crossing(table, terms, rays, his, L, R, kind, depth, g)
+                g = self.chain_crossing(table, terms, rays, his, L, R, kind, depth, g, light)
             dr.eval(*g)
             return g
 
@@ -533,41 +555,54 @@ class Boundary:
         count = len(kind)
         choice = self.visibility(table, rays, (self.shape[L], self.prim[L], self.t[L]),
                                  (self.shape[R], self.prim[R], self.t[R]))
-        # shadows: the blocking primitive's inside function on the shadow rays; where the
-        # unlit sample has no blocker, it faces away from the light (the terminator, N.L)
-        # or lies outside a spot's cone (cos a)
-        if len(self.lights):
-            blocked_l = ~self.lit[light, L[0], L[1]]
-            blocker = np.where(blocked_l[:, None], self.occluder[light, L[0], L[1]],
-                               self.occluder[light, R[0], R[1]])
-            unblocked = jit_array(mi.Bool, blocker[:, 0] == NO_HIT)
-            for j, source in enumerate(self.lights):
-                mask = (kind == SHADOW) & (light == j)
-                if not mask.any():
-                    continue
-                shadows, facing, cone = [], [], []
-                for ray, si in zip(rays, his):
-                    wi, _, _ = source.illuminate(si.p)
-                    shadows.append(mi.Ray3f(si.p, wi))
-                    facing.append(dr.dot(self.tracer.facing_normal(si, ray), wi))
-                    if getattr(source, "kind", None) == "spotlight":
-                        cone.append(spot_cosine(source, wi))
-                if cone:  # a spot's cone edge (cos a = 0) rather than the terminator
-                    with dr.suspend_grad():
-                        dr.eval(cone[0], cone[1])
-                        crosses = np.sign(cone[0].numpy()) != np.sign(cone[1].numpy())
-                    facing = [dr.select(jit_array(mi.Bool, crosses), c, f)
-                              for c, f in zip(cone, facing)]
-                edge = self.crossed_edge(table, shadows, blocker[:, 0], blocker[:, 1])
-                for i, shadow in enumerate(shadows):
-                    gs = self.inside(table, shadow, blocker[:, 0], blocker[:, 1], edge)
-                    gs = dr.select(unblocked, facing[i], gs)
-                    choice[i] = dr.select(jit_array(mi.Bool, mask), gs, choice[i])
+        if (kind == SHADOW).any():
+            blocker = self.blocker(self.lit, self.occluder, light, L, R)
+            choice = self.shadow_crossing(table, rays, his, light, blocker, kind == SHADOW,
+                                          choice)
         # checker lines
         if (kind == CHECKER).any():
             choice = self.checker_crossing(terms, his, self.cell[L], self.cell[R],
                                            kind == CHECKER, choice)
         return choice
+
+    @staticmethod
+    def blocker(lit, occluder, index, L, R):
+        """(shape, prim) per pair (numpy) of what blocks light ``index`` (per pair: the first
+        index of ``lit`` and ``occluder``) at the unlit one of L and R (NO_HIT: nothing)."""
+        blocked_l = ~lit[index, L[0], L[1]]
+        return np.where(blocked_l[:, None], occluder[index, L[0], L[1]],
+                        occluder[index, R[0], R[1]])
+
+    def shadow_crossing(self, table, rays, his, light, blocker, which, g):
+        """g of the shadow pairs ``which`` (numpy) of light ``light`` (per pair) at the hits
+        ``his`` of ``rays``: the blocking primitive's inside function on the shadow rays;
+        where the unlit sample has no blocker, it faces away from the light (the terminator:
+        N.L) or lies outside a spot's cone (cos a, where its sign differs between L and R)."""
+        unblocked = jit_array(mi.Bool, blocker[:, 0] == NO_HIT)
+        out = list(g)
+        for j, source in enumerate(self.lights):
+            mask = which & (light == j)
+            if not mask.any():
+                continue
+            shadows, facing, cone = [], [], []
+            for ray, si in zip(rays, his):
+                wi, _, _ = source.illuminate(si.p)
+                shadows.append(mi.Ray3f(si.p, wi))
+                facing.append(dr.dot(self.tracer.facing_normal(si, ray), wi))
+                if getattr(source, "kind", None) == "spotlight":
+                    cone.append(spot_cosine(source, wi))
+            if cone:  # a spot's cone edge (cos a = 0) rather than the terminator
+                with dr.suspend_grad():
+                    dr.eval(cone[0], cone[1])
+                    crosses = np.sign(cone[0].numpy()) != np.sign(cone[1].numpy())
+                facing = [dr.select(jit_array(mi.Bool, crosses), c, f)
+                          for c, f in zip(cone, facing)]
+            edge = self.crossed_edge(table, shadows, blocker[:, 0], blocker[:, 1])
+            for i, shadow in enumerate(shadows):
+                gs = self.inside(table, shadow, blocker[:, 0], blocker[:, 1], edge)
+                gs = dr.select(unblocked, facing[i], gs)
+                out[i] = dr.select(jit_array(mi.Bool, mask), gs, out[i])
+        return out
 
     def visibility(self, table, rays, left, right):
         """g of a visibility edge between the rays of L and R (the first two of ``rays``),
@@ -591,11 +626,11 @@ class Boundary:
         return [dr.select(jit_array(mi.Bool, use_n), a, dr.select(jit_array(mi.Bool, use_f), b, c))
                 for a, b, c in zip(gn, gf, crease)]
 
-    def chain_crossing(self, table, terms, rays, his, L, R, kind, depth, g):
+    def chain_crossing(self, table, terms, rays, his, L, R, kind, depth, g, light):
         """g of the pairs whose edge is seen along the specular chain, at bounce ``depth``:
-        each ray's chain replayed, attached, then the visibility or checker function there,
-        or (total internal reflection switching) the refraction margin at the surface it
-        leaves."""
+        each ray's chain replayed, attached, then the visibility, checker or shadow function
+        there (``light``: per pair, the light of a shadow), or (total internal reflection
+        switching) the refraction margin at the surface it leaves."""
         finals, margins = [], []
         for ray, si in zip(rays, his):
             final_ray, final_si, margin = ray, si, mi.Float(0.0)
@@ -622,6 +657,11 @@ class Boundary:
             cl, cr = self.chain_cell[d, L[0], L[1]], self.chain_cell[d, R[0], R[1]]
             g = self.checker_crossing(terms, [s for _, s in finals], cl, cr,
                                       kind == CHAIN_CHECKER, g)
+        if (kind == CHAIN_SHADOW).any():
+            index = d * len(self.lights) + light
+            blocker = self.blocker(self.chain_lit, self.chain_occluder, index, L, R)
+            g = self.shadow_crossing(table, [r for r, _ in finals], [s for _, s in finals],
+                                     light, blocker, kind == CHAIN_SHADOW, g)
         return g
 
     def checker_crossing(self, terms, his, cl, cr, which, g):
