@@ -5,9 +5,12 @@
 
 **Accuracy.** For each kind of discontinuity and parameter (a scene made for it), the
 derivative of the image along a fixed direction by forward-mode AD on the k x k lattice
-(``--spp k^2``, k = 2, 4, 8) against the reference: central finite differences of the
-image of a 64 x 64 lattice (``--spp 4096``), with a step that moves the edges by about
-0.1 pixel (see tests/support_edges.py for why it is good to 1-2 %). Printed: the weighted
+(``--spp k^2``, k = 2, 4, 8) against the reference: central finite differences on a 256 x
+256 lattice per pixel (the image at 4 x 4 times the size, 64^2 samples per pixel, averaged
+over 4 x 4 blocks), with a step that moves the edges by about 0.02 pixel
+(``support_edges.fine_difference``; tests/support_edges.py says why: the tests' coarser
+reference, 64^2 samples and 0.1 pixel, is as good for sums but shares an edge between two
+pixels where it runs along their border, 7-8 % per pixel on a sphere). Printed: the weighted
 sum's error (fixed random weights) relative to the reference's weighted sum, and relative to
 the sum of the terms' sizes (sum |w ref|: a derivative of both signs may nearly cancel in the
 sum itself), and the per-pixel relative L2 error ||AD - ref|| / ||ref||.
@@ -165,18 +168,18 @@ CASES = [
 
 
 def accuracy(mi, width, height):
-    from support_edges import finite_difference, forward, relative_l2
+    from support_edges import fine_difference, forward, relative_l2
 
     rng = np.random.default_rng(13)
     weights = rng.random((height, width, 3))
     print(f"accuracy at {width} x {height}: AD on the k x k lattice vs finite differences "
-          "of the 64 x 64 lattice")
+          "of the 256 x 256 lattice (steps moving the edges about 0.02 pixel)")
     print("| edge | parameter | k | weighted sum: error | error / sum of sizes | "
           "per-pixel relative L2 |")
     print("| --- | --- | --- | --- | --- | --- |")
     for kind, label, text, key, direction, h in CASES:
         options = dict(width=width, height=height)
-        reference = finite_difference(mi, text, key, direction, h, **options)
+        reference = fine_difference(mi, text, key, direction, h, **options)
         ref_sum = float(np.sum(weights * reference))
         size = float(np.sum(np.abs(weights * reference)))
         for k in (2, 4, 8):
