@@ -33,6 +33,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
 
+from support_edges import MIRRORED_SHADOW, SNELL, SPOT, TERMINATOR  # noqa: E402
+
 FLAT = """\
 eye 0 0 5
 fov 40
@@ -80,69 +82,7 @@ material 1 1 1 0 0 0 1 0 0.9 1.5
 sphere
 """
 
-# a shiny sphere lit from behind on the left: the terminator (N.L = 0, where the specular
-# term is cut off) crosses the disk
-TERMINATOR = """\
-eye 0 0 5
-fov 40
-background 0.2 0.3 0.4
-light 1 1 1 point -5 0.3 -1
-light 0.2 0.2 0.2 ambient
-material 0.8 0.4 0.3 0.2 0.3 0.8 1 0 0 1
-sphere
-"""
 
-# a spotlight of coefficient 0 on a floor: its cone's edge (cos a = 0) crosses the image
-SPOT = """\
-eye 0 2 5
-lookat 0 -1 0
-fov 50
-background 0.2 0.3 0.4
-light 1 0.9 0.7 spotlight -0.5 0.5 0  1 -0.2 0.3  0
-light 0.2 0.2 0.2 ambient
-material 0.8 0.8 0.7 0.3 0.7 0 1 0 0 1
-translate 0 -1 0
-plane
-"""
-# a mirror floor reflecting a wall on which a sphere casts its shadow (seen directly and in
-# the mirror)
-MIRRORED_SHADOW = """\
-eye 0 1 6
-lookat 0 -0.5 0
-fov 45
-background 0.2 0.3 0.4
-light 1 1 1 point 1.5 1 4
-light 0.2 0.2 0.2 ambient
-material 0.1 0.1 0.1 0.2 0.2 0 1 0.9 0 1
-translate 0 -1 0
-plane
-reset
-material 0.9 0.8 0.6 0.3 0.7 0 1 0 0 1
-rotateX 90
-translate 0 0 -2
-plane
-reset
-material 0.8 0.4 0.3 0.3 0.7 0 1 0 0 1
-translate 0 0.8 0
-scale 0.6 0.6 0.6
-sphere
-"""
-# Snell's window: looking up from under a glass surface, total internal reflection switches
-# on at the critical angle (inside the window the sky, outside the lit floor reflected)
-SNELL = """\
-eye 0 -1 0
-lookat 0 0 0
-up 0 0 1
-fov 120
-background 0.1 0.2 0.6
-light 1 0.9 0.8 point 0 -2 0
-light 0.2 0.2 0.2 ambient
-material 1 1 1 0 0 0 1 0 0.9 1.33
-plane
-material 0.9 0.6 0.3 0.3 0.7 0 1 0 0 1
-translate 0 -3 0
-plane
-"""
 
 # (kind of edge, parameter, scene, key, direction, step moving edges ~0.1 px at 32 x 24)
 CASES = [

@@ -171,23 +171,28 @@ def test_untextured_opaque_ellipsoids_join_the_set_the_others_stay_tessellated(t
     assert "quadrics_0" not in translate(sphere_grid(300, stretch_every=3))  # all joined
 
 
+def independent_error(text, width=40, height=30, **options):
+    """(The largest error per pixel of the render of ``text`` at depth 3 against
+    reference_tracer.py's, which pixels that tracer marks fragile) -- as test_whitted's
+    whole-image test."""
+    from raymitsuba.format.parser import parse_text
+
+    want, fragile = rt.render(rt.from_model(parse_text(text), width, height), width, height,
+                              max_depth=3)
+    image = render_ray(text, width, height, max_depth=3, **options)
+    return np.abs(image - want).max(axis=-1), fragile
+
+
 def test_ellipsoids_of_the_set_match_the_independent_tracer(mitsuba):
     """Exact ellipsoids (a third of 260 spheres, under non-uniform scales and rotations, some
     mirrors) against reference_tracer.py's exact ellipsoids: 1e-4 away from the pixels it
     marks fragile, as the spheres' test; with --sphere-set 0 they are tessellated and differ
     by more (the 8-segment silhouettes and normals of the budget)."""
-    from raymitsuba.format.parser import parse_text
-
     text = sphere_grid(SET_MIN + 4, mirror_every=4, stretch_every=3)
-    width, height = 40, 30
-    want, fragile = rt.render(rt.from_model(parse_text(text), width, height), width, height,
-                              max_depth=3)
-    image = render_ray(text, width, height, max_depth=3)
-    error = np.abs(image - want).max(axis=-1)
+    error, fragile = independent_error(text)
     assert fragile.mean() < 0.3
     assert error[~fragile].max() < 1e-4
-    tessellated = render_ray(text, width, height, max_depth=3, sphere_set=0)
-    assert np.abs(tessellated - want).max(axis=-1)[~fragile].max() > 1e-2
+    assert independent_error(text, sphere_set=0)[0][~fragile].max() > 1e-2
 
 
 def test_the_set_draws_what_single_spheres_draw_but_for_grazing_rays(mitsuba, tmp_path):
@@ -211,14 +216,7 @@ def test_the_set_draws_what_single_spheres_draw_but_for_grazing_rays(mitsuba, tm
 def test_a_set_scene_matches_the_independent_tracer(mitsuba):
     """The set (with glass and mirror spheres beside it) against reference_tracer.py, as
     test_whitted's whole-image test: 1e-4 away from the pixels it marks fragile."""
-    from raymitsuba.format.parser import parse_text
-
-    text = sphere_grid(SET_MIN + 4, glass_every=9, mirror_every=4)
-    width, height = 40, 30
-    want, fragile = rt.render(rt.from_model(parse_text(text), width, height), width, height,
-                              max_depth=3)
-    image = render_ray(text, width, height, max_depth=3)
-    error = np.abs(image - want).max(axis=-1)
+    error, fragile = independent_error(sphere_grid(SET_MIN + 4, glass_every=9, mirror_every=4))
     assert fragile.mean() < 0.3
     assert error[~fragile].max() < 1e-4
 

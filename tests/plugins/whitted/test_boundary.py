@@ -21,8 +21,9 @@ import math
 import numpy as np
 import pytest
 
-from support_edges import (H, W, finite_difference, forward, image, loaded, relative_l2,
-                           reverse, weights)
+from support_edges import (H, MIRRORED_SHADOW, SNELL, SPOT, TERMINATOR, W,
+                           finite_difference, forward, image, loaded, relative_l2, reverse,
+                           weights)
 
 FLAT = """\
 eye 0 0 5
@@ -54,70 +55,6 @@ material 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1
 translate 0.2 0 0
 scale 0.8 0.8 0.8
 sphere
-"""
-# a shiny sphere lit from behind on the left: the terminator (N.L = 0) crosses the disk, and
-# the specular term (ks (R.V)^n, n = 1) is cut off there
-TERMINATOR = """\
-eye 0 0 5
-fov 40
-background 0.2 0.3 0.4
-light 1 1 1 point -5 0.3 -1
-light 0.2 0.2 0.2 ambient
-material 0.8 0.4 0.3 0.2 0.3 0.8 1 0 0 1
-sphere
-"""
-# a spotlight of coefficient 0 on a floor: it lights the half-space in front of it evenly,
-# and its edge (cos a = 0) crosses the image
-SPOT = """\
-eye 0 2 5
-lookat 0 -1 0
-fov 50
-background 0.2 0.3 0.4
-light 1 0.9 0.7 spotlight -0.5 0.5 0  1 -0.2 0.3  0
-light 0.2 0.2 0.2 ambient
-material 0.8 0.8 0.7 0.3 0.7 0 1 0 0 1
-translate 0 -1 0
-plane
-"""
-# a mirror floor reflecting a wall on which a sphere casts its shadow: the shadow's edge is
-# seen directly and in the mirror (the specular chain's first bounce)
-MIRRORED_SHADOW = """\
-eye 0 1 6
-lookat 0 -0.5 0
-fov 45
-background 0.2 0.3 0.4
-light 1 1 1 point 1.5 1 4
-light 0.2 0.2 0.2 ambient
-material 0.1 0.1 0.1 0.2 0.2 0 1 0.9 0 1
-translate 0 -1 0
-plane
-reset
-material 0.9 0.8 0.6 0.3 0.7 0 1 0 0 1
-rotateX 90
-translate 0 0 -2
-plane
-reset
-material 0.8 0.4 0.3 0.3 0.7 0 1 0 0 1
-translate 0 0.8 0
-scale 0.6 0.6 0.6
-sphere
-"""
-# Snell's window: looking up from under a glass surface (a plane; a ray from below leaves
-# the glass), total internal reflection switches on at the critical angle; inside the window
-# the sky, outside it the lit floor reflected
-SNELL = """\
-eye 0 -1 0
-lookat 0 0 0
-up 0 0 1
-fov 120
-background 0.1 0.2 0.6
-light 1 0.9 0.8 point 0 -2 0
-light 0.2 0.2 0.2 ambient
-material 1 1 1 0 0 0 1 0 0.9 1.33
-plane
-material 0.9 0.6 0.3 0.3 0.7 0 1 0 0 1
-translate 0 -3 0
-plane
 """
 CHECKER = """\
 eye 0.3 5 1.5
