@@ -443,10 +443,15 @@ class Boundary:
         faces = ~differs & (sl != NO_HIT) & (self.prim[left] != self.prim[right])
         if not faces.any():
             return differs
-        kind = kind_of[np.where(sl == NO_HIT, 0, np.minimum(sl, len(kind_of) - 1))]
+        kind = kind_of[np.minimum(sl[faces], len(kind_of) - 1)]
         flat = (kind & MESH != 0) & (kind & SMOOTH == 0)
-        bent = np.linalg.norm(self.normal[left] - self.normal[right], axis=-1) > COPLANAR
-        return differs | (faces & flat & bent)
+        where = tuple(i[flat] for i in np.nonzero(faces))  # (only these: the normals' test
+        # over the whole lattice is the costly part)
+        nl, nr = self.normal[left][where], self.normal[right][where]
+        bent = np.linalg.norm(nl - nr, axis=-1) > COPLANAR
+        differs = differs.copy()
+        differs[tuple(i[bent] for i in where)] = True
+        return differs
 
     # -- the surrogates --------------------------------------------------------------------------
     def film_rays(self, y, x):
