@@ -136,6 +136,34 @@ def test_an_ellipsoid_of_the_sphere_set_moves_its_silhouette_with_the_camera(mi)
     assert relative_l2(grad, reference) < 0.15
 
 
+def test_hurwitz_zeta_of_one_half_has_its_closed_forms(mi):
+    from raymitsuba.plugins.whitted.boundary import hurwitz_zeta_half
+
+    zeta_half = -1.4603545088095868  # Riemann's zeta(1/2)
+    assert hurwitz_zeta_half(1.0) == pytest.approx(zeta_half, abs=1e-9)
+    assert hurwitz_zeta_half(0.5) == pytest.approx((math.sqrt(2) - 1) * zeta_half, abs=1e-9)
+    # zeta(1/2, q) = q^-1/2 + zeta(1/2, q + 1)
+    q = np.array([1e-3, 0.1, 0.37, 0.9])
+    np.testing.assert_allclose(hurwitz_zeta_half(q), q ** -0.5 + hurwitz_zeta_half(q + 1),
+                               atol=1e-9)
+
+
+def test_a_shaded_sphere_moving_converges_at_its_rim(mi):
+    """A shaded sphere moved across the rays: the interior derivative diverges at its rim and
+    the lattice's error there is subtracted (Boundary.rim_correction). Against the fine
+    reference (256^2 lattice, 0.02-pixel steps), at k = 4: measured 4.6 % per pixel (19.4 %
+    without the correction); asserted 8 %."""
+    from support_edges import fine_difference
+
+    text = ("eye 0 0 10 fov 30\nbackground 0.2 0.3 0.4\n"
+            "surface 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1\nlight 1 1 1 point 2 3 9\n"
+            "sphere 0.1 0.05 0 1.3\n")
+    key, direction, h = "sphere1.center", (0.6, -0.8, 0.0), 0.03
+    reference = fine_difference(mi, text, key, direction, h, width=32, height=24)
+    grad = forward(mi, text, key, direction, 16, width=32, height=24)
+    assert relative_l2(grad, reference) < 0.08
+
+
 def test_the_primal_image_does_not_change_by_a_bit(mi):
     import drjit as dr
     import raymitsuba
