@@ -181,6 +181,7 @@ class Boundary:
         self.width, self.height, self.k = width, height, lattice_side(spp)
         self.terms = tracer.scene_terms(scene)  # detached: keys only
         self.lights = self.terms.direct
+        self.kind_of = self.terms.geometry.kind.numpy()  # HitTable kind bits by shape id
         need = width * height * spp * (BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights))
         if need > budget:
             raise BudgetError(
@@ -369,7 +370,7 @@ class Boundary:
     def pairs(self):
         """Every lattice pair with an edge between: a dict of numpy arrays (one entry per
         pair): L, R, O as (Y, X), the kind, the light (shadows), and what g is made of."""
-        kind_of = self.surface_kinds()
+        kind_of = self.kind_of
         found = []
         rows, cols = self.t.shape
         ended = [bool(np.all(shape == STOP)) for shape in self.chain_shape]
@@ -448,10 +449,6 @@ class Boundary:
         return {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))
                        if name in POINTS else np.concatenate([f[name] for f in found]))
                 for name in found[0]}
-
-    def surface_kinds(self):
-        """The HitTable kind bits by shape registry id."""
-        return self.terms.geometry.kind.numpy()
 
     def surface_differs(self, left, right, kind_of):
         """Whether two samples see different surfaces (the lattice's views ``left`` and
@@ -554,7 +551,7 @@ class Boundary:
         near_l = self.t[L] <= self.t[R]
         inside = tuple(np.where(near_l, a, b) for a, b in zip(L, R))
         shape = self.shape[inside]
-        kind_of = self.surface_kinds()
+        kind_of = self.kind_of
         sphere = (kind == VISIBILITY) & (shape != NO_HIT) & (normal2 > 0)
         sphere &= (kind_of[np.minimum(np.where(shape == NO_HIT, 0, shape), len(kind_of) - 1)]
                    & SPHERE) != 0
