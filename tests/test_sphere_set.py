@@ -1,5 +1,6 @@
-"""The sphere set (raymitsuba/sphere_set.py): a scene's many opaque spheres (and ellipsoids) as one
-Mitsuba ``ellipsoids`` shape, which must draw exactly what the spheres drawn one by one do."""
+"""The sphere set (raymitsuba/sphere_set.py): a scene's many opaque spheres (and ellipsoids)
+as one Mitsuba ``ellipsoids`` shape, which must draw exactly what the spheres drawn one by one
+do."""
 
 import math
 
