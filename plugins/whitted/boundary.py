@@ -585,10 +585,12 @@ class Boundary:
                 x = np.where(axis == 1, at, lx + 0.5)
                 ray = self.film_rays(y - 0.5, x - 0.5)
                 color = self.tracer.trace(self.scene, ray, self.terms).color
-                colors.append(np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1))
                 si = self.scene.ray_intersect_preliminary(ray)
-                shapes.append(dr.select(si.is_valid(), dr.reinterpret_array(mi.UInt32, si.shape),
-                                        NO_HIT).numpy())
+                shape = dr.select(si.is_valid(), dr.reinterpret_array(mi.UInt32, si.shape),
+                                  NO_HIT)
+                dr.eval(color, shape)
+                colors.append(np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1))
+                shapes.append(shape.numpy())
         same = (shapes[0] == self.shape[L]) & (shapes[1] == self.shape[R])
         return np.where(same[:, None], colors[0] - colors[1], self.color[L] - self.color[R])
 

@@ -67,6 +67,15 @@ class Job:
                            pixels=mi.UInt32(self.pixels[start:start + count]),
                            footprint=footprint)
 
+    def lane_pixel(self, start, count):
+        """The image's pixel number of each lane (camera ray) of the job's pixels start ..
+        start + count - 1 (UInt32, ``spp`` lanes a pixel; computed, not gathered from a lazy
+        array, so it evaluates nothing)."""
+        lane = dr.arange(mi.UInt32, count * self.spp) // self.spp
+        if self.pixels is None:
+            return lane + dr.opaque(mi.UInt32, self.first + start)
+        return dr.gather(mi.UInt32, mi.UInt32(self.pixels[start:start + count]), lane)
+
     def pixel_index(self, start, count):
         """The image's pixel numbers of the job's pixels start .. start + count - 1 (UInt32)."""
         if self.pixels is None:
@@ -102,16 +111,17 @@ class Chunker:
     def tree_rays(self, ad):
         return max(int(self.budget // (BYTES_PER_RAY_AD if ad else BYTES_PER_RAY)), MIN_CHUNK_RAYS)
 
-    def run(self, job, visit, ad=False):
+    def run(self, job, visit, ad=False, lazy=False):
         """Trace ``job`` chunk by chunk; for each chunk call ``visit(start, count, color)``
         with the camera rays' colors (one lane per camera ray, pixel-major). ``visit`` is
-        called with AD enabled when ``ad`` (and then the tree is sized for its graph)."""
+        called with AD enabled when ``ad`` (and then the tree is sized for its graph);
+        ``lazy``: the colors are handed over unevaluated (``Tracer.trace``)."""
         max_rays = self.tree_rays(ad)
         self.pixels_total += job.count
         start = 0
         while start < job.count:
             count = min(self._chunk_pixels(job, max_rays), job.count - start)
-            trace, count = self._trace_within(job, start, count, ad, max_rays)
+            trace, count = self._trace_within(job, start, count, ad, max_rays, lazy)
             rays = sum(trace.rays_per_generation)
             self.rays_traced += rays
             self.rays_per_generation = trace.rays_per_generation
@@ -130,12 +140,12 @@ class Chunker:
         pixels = max(lanes // job.spp, 1)
         return pixels if self.max_pixels is None else min(pixels, self.max_pixels)
 
-    def _trace_within(self, job, start, count, ad, max_rays):
+    def _trace_within(self, job, start, count, ad, max_rays, lazy=False):
         """(The trace of the ``count`` pixels from ``start``, or of the first half of them,
         halved again until the tree holds at most ``max_rays`` rays; that count)."""
         while True:
             try:
-                return self._trace(job, start, count, ad, max_rays), count
+                return self._trace(job, start, count, ad, max_rays, lazy), count
             except TreeTooLarge:
                 if count == 1:
                     raise BudgetError(
@@ -144,11 +154,11 @@ class Chunker:
                         "a --bailout (e.g. 1e-3) or a larger --memory-budget") from None
                 count = max(count // 2, 1)
 
-    def _trace(self, job, start, count, ad, max_rays):
+    def _trace(self, job, start, count, ad, max_rays, lazy=False):
         if ad:  # terms of its own: each chunk's adjoint pass consumes its graph
             with dr.resume_grad():
                 return self.tracer.trace(self.scene, self._rays(job, start, count),
-                                         self.tracer.scene_terms(self.scene), max_rays)
+                                         self.tracer.scene_terms(self.scene), max_rays, lazy)
         if self.terms is None:
             self.terms = self.tracer.scene_terms(self.scene)
         return self.tracer.trace(self.scene, self._rays(job, start, count), self.terms,

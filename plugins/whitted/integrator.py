@@ -150,15 +150,19 @@ class Whitted(mi.CppADIntegrator):
             grad = grad_in if weights is None else grad_in * jit_array(mi.Float, np.repeat(weights, 3))
 
             def visit(start, count, color, job=job, grad=grad):
+                with dr.resume_grad():
+                    # the adjoint of the box filter, each lane's share of its pixel's: so the
+                    # colors (not gathered from) are evaluated with the derivative, in its kernel
+                    share = dr.gather(mi.Color3f, grad, job.lane_pixel(start, count))
+                    if job.spp > 1:
+                        share *= 1.0 / job.spp
+                    dr.schedule(color)
+                    dr.backward_from(color * share, flags=dr.ADFlag.Default | (
+                        dr.ADFlag.AllowNoGrad if edges is not None else 0))
                 if edges is not None:
                     edges.collect(job, start, count, color)
-                with dr.resume_grad():
-                    means = pixel_means(color, count, job.spp)
-                    weight = dr.gather(mi.Color3f, grad, job.pixel_index(start, count))
-                    dr.backward_from(means * weight, flags=dr.ADFlag.Default | (
-                        dr.ADFlag.AllowNoGrad if edges is not None else 0))
 
-            chunker.run(job, visit, ad=True)
+            chunker.run(job, visit, ad=True, lazy=True)
         if edges is not None:
             edges.backward(grad_in.numpy().reshape(-1, 3))
 

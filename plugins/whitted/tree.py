@@ -142,10 +142,13 @@ class Tracer:
         self.surfaces = terms.surfaces
         return terms
 
-    def trace(self, scene, ray, terms, max_rays=None):
+    def trace(self, scene, ray, terms, max_rays=None, lazy=False):
         """The :class:`Trace` of each ray of ``ray`` (one lane per ray) through its whole
         tree, with the scene's ``terms`` (from :meth:`scene_terms`). ``max_rays``: a tree of
-        more rays than this raises :class:`TreeTooLarge` (None: no limit)."""
+        more rays than this raises :class:`TreeTooLarge` (None: no limit). ``lazy``: the
+        camera rays' colors are left unevaluated, for a caller that evaluates them with what
+        it computes from them (an adjoint pass: with the derivative, in its kernel); a gather
+        from them would evaluate them alone."""
         limits = bailout.path_weight_limits(self.bailout, terms, self.max_depth,
                                             self.max_shadow_crossings)
         path_weight = None if limits is None else mi.Float(1.0)
@@ -154,7 +157,7 @@ class Tracer:
             ray = self.geometry_ad.camera_rays(ray)
         for depth in range(self.max_depth + 1):
             rays_per_generation.append(dr.width(ray))
-            last = depth == self.max_depth
+            last = depth == self.max_depth or not terms.surfaces.any_specular
             step = self.step(scene, terms, ray, depth, not last)
             generation = Generation(step.local)
             generations.append(generation)
@@ -171,7 +174,8 @@ class Tracer:
         color = None
         for generation in reversed(generations):
             color = generation.subtree_color(color)
-            dr.eval(color)  # once for all three channels: the next step gathers from each
+            if not (lazy and generation is generations[0]):
+                dr.eval(color)  # once for all three channels: the next step gathers from each
         return Trace(color, rays_per_generation)
 
     def step(self, scene, terms, ray, depth, children):
