@@ -491,22 +491,20 @@ class Boundary:
         L, R = points["L"], points["R"]
         kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
         depth = pairs["depth"][sl]
-        def g_at(names):  # g at the pair's points ``names`` (the first two: L and R)
-            rays = [self.film_rays(*points[name]) for name in names]
-            dr.eval(rays)
-            his = [_evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
-                   for ray in rays]
-            g = self.crossing(table, terms, rays, his, L, R, kind, light)
-            if (depth >= 0).any():
-                g = self.chain_crossing(table, terms, rays, his, L, R, kind, depth, g, light)
-            dr.eval(*g)
-            return g
-
-        # only L and R carry derivatives; the neighbours across give the normal, detached
-        g_l, g_r = g_at(("L", "R"))
+        # g at the pair's points: only L and R carry derivatives (the camera's); the
+        # neighbours across give the edge's normal, detached
+        rays = [self.film_rays(*points[name]) for name in POINTS[:2]]
         with dr.suspend_grad():
-            g = g_at(POINTS)
-        gl, gr, gla, gra, glb, grb = (v.numpy().astype(np.float64) for v in g)
+            rays += [self.film_rays(*points[name]) for name in POINTS[2:]]
+        dr.eval(rays)
+        his = [_evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
+               for ray in rays]
+        g = self.crossing(table, terms, rays, his, L, R, kind, light)
+        if (depth >= 0).any():
+            g = self.chain_crossing(table, terms, rays, his, L, R, kind, depth, g, light)
+        dr.eval(*g)
+        g_l, g_r = g[:2]
+        gl, gr, gla, gra, glb, grb = (dr.detach(v).numpy().astype(np.float64) for v in g)
         along = gr - gl  # dg per lattice unit along the pair's axis, across the crossing
         valid = (np.sign(gl) != np.sign(gr)) & (np.abs(along) > 0) & np.isfinite(along)
         w = np.clip(np.where(valid, gl / np.where(valid, gl - gr, 1.0), 0.5), 0.0, 1.0)
