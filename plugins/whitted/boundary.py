@@ -75,6 +75,8 @@ within O(1/k) of a pixel). Pairs are processed in chunks (memory bounded), in re
 (``backward``) and forward mode (``forward``).
 """
 
+import copy
+
 import drjit as dr
 import mitsuba as mi
 import numpy as np
@@ -89,7 +91,8 @@ from .tree import reflect, refract
 PAIRS_PER_CHUNK = 1 << 16
 NO_HIT = 0xFFFFFFFF
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
-VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW = range(7)
+KINDS = 7  # kinds of pairs:
+VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW = range(KINDS)
 CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
 # host bytes of one sample's keys (shape, face, distance, normal, checker cell, color and,
 # per bounce of the chain, shape, face, distance, cell, TIR flag) and per light (lit, blocker)
@@ -97,25 +100,36 @@ BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 16 + 12 + CHAIN_DEPTH * (4 + 4 + 4 + 16 + 1)
 BYTES_PER_LIGHT = (1 + 8) * (1 + CHAIN_DEPTH)  # lit and blocker, first hit and chain
 STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
 LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
+# the values of a light that may be keys (those it has: ``plugins/light.py``)
+LIGHT_VALUES = ("color", "position", "direction", "shape_coefficient")
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
 
 
-def wanted(tracer, scene):
-    """Whether a derivative pass needs the boundary terms: some key moves the geometry or the
-    camera, or a light's position or direction, or a material's eta has its gradient
-    enabled."""
+def moving_kinds(tracer, scene):
+    """The kinds of pairs whose edges some key with its gradient enabled moves (empty: a
+    derivative pass needs no boundary terms). A key that moves the geometry or the camera
+    moves every kind; a material's eta, what is seen through glass (the specular chain's
+    kinds); a light's position or direction, its shadow edges, the terminator and a spot's
+    cone (the shadow kinds). The others' surrogates would have no derivative: their pairs
+    are not formed."""
+    kinds = set()
     if tracer.geometry_ad is not None and (tracer.geometry_ad.attached() or (
             tracer.geometry_ad.camera is not None and tracer.geometry_ad.camera.attached())):
-        return True
+        return set(range(KINDS))
     if tracer.surfaces is not None and any(  # eta moves what is seen through glass
             dr.grad_enabled(material.ior) for material in tracer.surfaces.layout.materials):
-        return True
+        kinds |= {CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW}
     for emitter in scene.emitters():
         for name in ("position", "direction"):
             value = getattr(emitter, name, None)
             if value is not None and dr.grad_enabled(value):
-                return True
-    return False
+                kinds |= {SHADOW, CHAIN_SHADOW}
+    return kinds
+
+
+def wanted(tracer, scene):
+    """Whether a derivative pass needs the boundary terms (see moving_kinds)."""
+    return bool(moving_kinds(tracer, scene))
 
 
 def hurwitz_zeta_half(q):
@@ -179,9 +193,11 @@ class Boundary:
     def __init__(self, tracer, scene, sensor, width, height, spp, budget):
         self.tracer, self.scene, self.sensor = tracer, scene, sensor
         self.width, self.height, self.k = width, height, lattice_side(spp)
-        self.terms = tracer.scene_terms(scene)  # detached: keys only
+        with dr.suspend_grad():
+            self.terms = tracer.scene_terms(scene)  # detached: the keys, the one-sided colors
         self.lights = self.terms.direct
         self.kind_of = self.terms.geometry.kind.numpy()  # HitTable kind bits by shape id
+        self.kinds = sorted(moving_kinds(tracer, scene))  # the kinds of pairs formed
         need = width * height * spp * (BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights))
         if need > budget:
             raise BudgetError(
@@ -430,7 +446,7 @@ class Boundary:
                 kind[switch] = CHAIN_TIR
                 depth[ok | switch] = d
                 pending &= ~here
-            keep = kind >= 0
+            keep = np.isin(kind, self.kinds)  # (-1: none, or left out)
             ly, lx = np.nonzero(keep)  # (row-major: the order of the lattice)
             ry, rx = ly + (axis == 0), lx + (axis == 1)
             # the neighbours of L and R across the axis, either side (one side at the border):
@@ -470,8 +486,9 @@ class Boundary:
         return differs
 
     # -- the surrogates --------------------------------------------------------------------------
-    def film_rays(self, y, x):
-        """The camera rays of lattice points (y, x) (numpy), the camera keys attached."""
+    def film_rays(self, y, x, camera=True):
+        """The camera rays of lattice points (y, x) (numpy), with ``camera`` the camera keys
+        attached (else as the sensor makes them: ``Tracer.trace`` attaches them itself)."""
         k = self.k
         pos = mi.Point2f(jit_array(mi.Float, ((x + 0.5) / (k * self.width)).astype(np.float32)),
                          jit_array(mi.Float, ((y + 0.5) / (k * self.height)).astype(np.float32)))
@@ -479,7 +496,7 @@ class Boundary:
                                         sample3=mi.Point2f(0.5))
         ray = mi.Ray3f(ray)
         ad = self.tracer.geometry_ad
-        return ray if ad is None else ad.camera_rays(ray)
+        return ray if ad is None or not camera else ad.camera_rays(ray)
 
     def surrogates(self, pairs, lo, hi):
         """(Color3f surrogate per pair lo .. hi - 1, zero-valued, with the derivative of the
@@ -565,7 +582,15 @@ class Boundary:
         delta = np.maximum(np.where(near_l, w, 1.0 - w), 1e-3)
         factor = np.where(sphere, -hurwitz_zeta_half(delta) * np.sqrt(delta) * normal2
                           / self.k ** 2, 0.0)
-        d = self.tracer.trace(self.scene, self.film_rays(*inside), terms).color
+        # d's derivative: the geometry's and the camera's alone, whose interior term is
+        # singular at the rim (the materials' tables detached, the lights' values suspended;
+        # the tracer attaches the camera's keys to the rays)
+        moving = copy.copy(self.terms)
+        moving.geometry = table
+        with dr.suspend_grad(*(getattr(light, name) for light in self.lights
+                               for name in LIGHT_VALUES if hasattr(light, name))):
+            d = self.tracer.trace(self.scene, self.film_rays(*inside, camera=False),
+                                  moving).color
         return (d - dr.detach(d)) * jit_array(mi.Float, factor.astype(np.float32))
 
     def jump(self, L, R, axis, w, kind):

@@ -51,6 +51,11 @@ from .tree import Tracer
 
 __doc__ += options.describe(options.INTEGRATOR)
 
+# An image that does not depend on a parameter whose gradient is enabled (a sphere turned
+# about its centre, samples all flat in it) has the derivative 0 with respect to it: not an
+# error (Dr.Jit's default, meant to catch a forgotten dr.enable_grad)
+NO_DEPENDENCE_IS_ZERO = dr.ADFlag.AllowNoGrad
+
 
 class RenderStats(NamedTuple):
     """What a render measured (``Whitted.stats``, of the last render)."""
@@ -128,9 +133,7 @@ class Whitted(mi.CppADIntegrator):
                     # the parameters' tangents stay for the next chunk; the last one clears them
                     flags = dr.ADFlag.Default if last else \
                         dr.ADFlag.ClearEdges | dr.ADFlag.ClearInterior
-                    if edges is not None:  # (an image whose every sample is flat in theta)
-                        flags |= dr.ADFlag.AllowNoGrad
-                    dr.forward_to(means, flags=flags)
+                    dr.forward_to(means, flags=flags | NO_DEPENDENCE_IS_ZERO)
                     grad = dr.ravel(dr.grad(means)).numpy().reshape(-1, 3)
                 grads[job.pixel_index(start, count).numpy()] = grad
 
@@ -157,8 +160,7 @@ class Whitted(mi.CppADIntegrator):
                     if job.spp > 1:
                         share *= 1.0 / job.spp
                     dr.schedule(color)
-                    dr.backward_from(color * share, flags=dr.ADFlag.Default | (
-                        dr.ADFlag.AllowNoGrad if edges is not None else 0))
+                    dr.backward_from(color * share, flags=dr.ADFlag.Default | NO_DEPENDENCE_IS_ZERO)
                 if edges is not None:
                     edges.collect(job, start, count, color)
 

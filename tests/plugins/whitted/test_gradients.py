@@ -363,3 +363,22 @@ def test_ray_intersect_carries_ray_derivatives(mi, body):
         fd = (np.array(p.numpy(), np.float64) - np.array(m.numpy(), np.float64)) / (2 * h)
         assert np.abs(fd).max() > 1e-2, name  # the quantity does move with the ray
         np.testing.assert_allclose(a, fd, rtol=2e-3, atol=2e-3 * np.abs(fd).max(), err_msg=name)
+
+
+def test_a_key_the_image_does_not_depend_on_has_the_derivative_zero(mi):
+    """A sphere turned about its centre changes no pixel: its angle's derivative is 0 in
+    both modes (not Dr.Jit's error for a graph that does not reach the parameter)."""
+    import drjit as dr
+    import raymitsuba
+
+    text = ("eye 0 0 5\nlight 1 1 1 point 2 3 1\n"
+            "material 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1\nrotateY 30\nsphere\n")
+    loaded = raymitsuba.load(text, width=8, height=6, spp=4)
+    params = loaded.params
+    dr.enable_grad(params["rotateY1.angle"])
+    params.update()
+    dr.backward(dr.sum(raymitsuba.render(loaded), axis=None))
+    assert dr.grad(params["rotateY1.angle"])[0] == 0.0
+    dr.set_grad(params["rotateY1.angle"], 1.0)
+    tangent = dr.forward_to(raymitsuba.render(loaded))
+    assert np.all(tangent.numpy() == 0.0)
