@@ -173,6 +173,11 @@ def _evaluated(si):
     return si
 
 
+def _host(vector):
+    """A Dr.Jit vector (evaluated) as a numpy (lanes, components) array."""
+    return np.stack([c.numpy() for c in vector], -1)
+
+
 def _merge(mask, si, other):
     """The fields the boundary terms read (uv, shape, prim_index, t, p, n and the shading
     normal) of ``si`` where ``mask``, else of ``other``."""
@@ -283,45 +288,55 @@ class Boundary:
                 done += span
 
     def keys(self, rays):
-        """The keys of the samples of ``rays`` (detached), as numpy arrays."""
-        scene, terms, table = self.scene, self.terms, self.terms.geometry
-        si = _evaluated(self.tracer.intersect(scene, table, rays, coherent=True))
+        """The keys of the samples of ``rays`` (detached), as numpy arrays. Each hit's keys
+        (the first hit's, then each bounce's of the specular chain) are one evaluation: one
+        kernel traces the rays, the shadow rays and the chain's next rays."""
+        scene, table = self.scene, self.terms.geometry
+        si = self.tracer.intersect(scene, table, rays, coherent=True)
         hit = si.is_valid()
-        shape = dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT)
-        out = {"shape": shape.numpy(), "prim": si.prim_index.numpy(), "t": si.t.numpy(),
-               "normal": np.stack([c.numpy() for c in (si.n.x, si.n.y, si.n.z)], -1)}
-        out["cell"] = self.checker_cell(terms, si, hit)
+        first = self.hit_keys(si, rays, hit)
+        first["normal"] = si.n
         chain = {name: [] for name in ("chain_shape", "chain_prim", "chain_t", "chain_cell",
                                        "chain_tir", "chain_lit", "chain_occluder")}
-        ray_k, si_k, alive = rays, si, hit
+        ray_k, si_k, keys_k = rays, si, first
+        alive = hit & keys_k["go"]  # (with a next ray of the chain)
+        dr.eval(keys_k, alive)
+        out = {"shape": first["shape"].numpy(), "prim": first["prim"].numpy(),
+               "t": first["t"].numpy(), "normal": _host(first["normal"]),
+               "cell": _host(first["cell"]).astype(np.int64),
+               "lit": [v.numpy() for v in first["lit"]],
+               "occluder": [_host(v) for v in first["occluder"]]}
         for _ in range(CHAIN_DEPTH):
-            ray_k, go, tir = self.chain_step(terms, si_k, ray_k)
-            alive = alive & go
-            dr.eval(ray_k, go, tir, alive)
             if not dr.any(alive):  # (the chain's keys past its end: as the lattice starts)
                 break
-            si_k = _evaluated(self.tracer.intersect(scene, table, ray_k, coherent=False))
+            ray_k, tir = keys_k["next"], keys_k["tir"]
+            si_k = self.tracer.intersect(scene, table, ray_k, coherent=False)
             found = alive & si_k.is_valid()
-            chain["chain_shape"].append(dr.select(
-                found, dr.reinterpret_array(mi.UInt32, si_k.shape),
-                dr.select(alive, mi.UInt32(NO_HIT), mi.UInt32(STOP))).numpy())
-            chain["chain_prim"].append(si_k.prim_index.numpy())
-            chain["chain_t"].append(dr.select(found, si_k.t, dr.inf).numpy())
-            chain["chain_cell"].append(self.checker_cell(terms, si_k, found))
-            chain["chain_tir"].append((alive & tir).numpy())
-            lit, occluder = self.light_keys(si_k, ray_k, found)
-            chain["chain_lit"] += lit
-            chain["chain_occluder"] += occluder
-            alive = found
+            keys_k = self.hit_keys(si_k, ray_k, found)
+            shape = dr.select(found, keys_k["shape"],
+                              dr.select(alive, mi.UInt32(NO_HIT), mi.UInt32(STOP)))
+            at_tir = alive & tir
+            alive = found & keys_k["go"]
+            dr.eval(keys_k, shape, at_tir, alive)
+            chain["chain_shape"].append(shape.numpy())
+            chain["chain_prim"].append(keys_k["prim"].numpy())
+            chain["chain_t"].append(keys_k["t"].numpy())
+            chain["chain_cell"].append(_host(keys_k["cell"]).astype(np.int64))
+            chain["chain_tir"].append(at_tir.numpy())
+            chain["chain_lit"] += [v.numpy() for v in keys_k["lit"]]
+            chain["chain_occluder"] += [_host(v) for v in keys_k["occluder"]]
         out.update(chain)
-        out["lit"], out["occluder"] = self.light_keys(si, rays, hit)
         return out
 
-    def light_keys(self, si, rays, hit):
-        """Per light, at the hits ``si`` of ``rays`` (numpy): whether it lights the point
-        (it faces the light, lies in a spot's cone and the shadow ray is free), and what
-        blocks it ((shape, prim); NO_HIT where nothing does)."""
-        lit, occluder = [], []
+    def hit_keys(self, si, rays, hit):
+        """The keys of the hits ``si`` of ``rays`` where ``hit`` (Dr.Jit, not evaluated): the
+        shape (NO_HIT: none), face and distance (inf: none); the checker cell; per light,
+        whether it lights the point (it faces the light, lies in a spot's cone and the
+        shadow ray is free) and what blocks it ((shape, prim); NO_HIT: nothing); and the
+        specular chain's next ray (see chain_step)."""
+        keys = {"shape": dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT),
+                "prim": si.prim_index, "t": dr.select(hit, si.t, dr.inf),
+                "cell": self.checker_cell(self.terms, si, hit), "lit": [], "occluder": []}
         n = self.tracer.facing_normal(si, rays)
         for light in self.lights:
             wi, dist, _ = light.illuminate(si.p)
@@ -332,25 +347,25 @@ class Boundary:
             shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
             blocker = self.scene.ray_intersect_preliminary(shadow, coherent=False, active=active)
             blocked = active & blocker.is_valid()
-            dr.eval(blocked, blocker.shape, blocker.prim_index)
-            lit.append((active & ~blocked).numpy())
-            occluder.append(np.stack([
-                dr.select(blocked, dr.reinterpret_array(mi.UInt32, blocker.shape), NO_HIT).numpy(),
-                blocker.prim_index.numpy()], -1))
-        return lit, occluder
+            keys["lit"].append(active & ~blocked)
+            keys["occluder"].append(mi.Vector2u(
+                dr.select(blocked, dr.reinterpret_array(mi.UInt32, blocker.shape), NO_HIT),
+                blocker.prim_index))
+        keys["next"], keys["go"], keys["tir"] = self.chain_step(self.terms, si, rays)
+        return keys
 
     def checker_cell(self, terms, si, hit):
-        """(floor(u / size), floor(v / size)) of each hit on a checkered surface, else (0, 0)."""
+        """(floor(u / size), floor(v / size)) of each hit on a checkered surface, else (0, 0)
+        (Dr.Jit Floats)."""
         layout = terms.surfaces.layout
         if layout.checker_size is None:
-            return np.zeros((dr.width(hit), 2), np.int64)
+            return dr.zeros(mi.Vector2f, dr.width(hit))
         slot = terms.surfaces.slot(si.shape, si.prim_index, hit)
         size = dr.gather(mi.Float, layout.checker_size, slot, hit)
         checkered = hit & (size > 0)
         size = dr.select(checkered, size, 1.0)
-        cu = dr.select(checkered, dr.floor(si.uv.x / size), 0.0)
-        cv = dr.select(checkered, dr.floor(si.uv.y / size), 0.0)
-        return np.stack([cu.numpy(), cv.numpy()], -1).astype(np.int64)
+        return mi.Vector2f(dr.select(checkered, dr.floor(si.uv.x / size), 0.0),
+                           dr.select(checkered, dr.floor(si.uv.y / size), 0.0))
 
     def refraction_margin(self, terms, si, ray):
         """1 - sin^2 of the refracted angle at the hit ``si`` of ``ray``, 1 - (eta_i /
