@@ -570,11 +570,12 @@ class Boundary:
         first sample inside, D(delta) ~ a / sqrt(delta), so each visibility pair of a sphere
         subtracts zeta(1/2, delta) sqrt(delta) D(delta) / k^2 from its pixel, weighted by
         n_a^2 as the boundary term is (rows and columns both estimate it): one more sample
-        traced, attached. Only where the geometry or the camera keys move (a light or a
-        material leaves the hit in place: nothing is singular); the smooth part of D at the
+        traced, attached to the geometry's and the camera's keys alone, and only where they
+        move (a light or a material leaves the hit in place: nothing is singular; their
+        derivatives are kept out of D); the smooth part of D at the
         first sample is taken for singular too, a bias of at most 1.5 D / k^2 per pair
         (measured on benchmarks/edges_bench.py's spheres: per-pixel error at k = 4 from
-        18-19 % to 4-5 %; on its whole scene moved by the eye, 14.1 % to 15.0 %)."""
+        18-19 % to 4-5 %; on its whole scene moved by the eye, 14.1 % to 14.0 %)."""
         ad = self.tracer.geometry_ad
         if ad is None or not (ad.attached() or (ad.camera is not None and ad.camera.attached())):
             return None
