@@ -173,6 +173,18 @@ def _evaluated(si):
     return si
 
 
+def stacked(values):
+    """A per-pair numpy array repeated for each of the POINTS (the lanes of the stacked
+    rays: point set i at lanes i P .. (i + 1) P - 1)."""
+    return np.tile(values, (len(POINTS),) + (1,) * (values.ndim - 1))
+
+
+def at_l_and_r(value, count):
+    """The values (numpy) of a stacked Float (evaluated) at L and at R, ``count`` pairs."""
+    host = value.numpy()
+    return host[:count], host[count:2 * count]
+
+
 def _host(vector):
     """A Dr.Jit vector (evaluated) as a numpy (lanes, components) array."""
     return np.stack([c.numpy() for c in vector], -1)
@@ -523,20 +535,23 @@ class Boundary:
         L, R = points["L"], points["R"]
         kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
         depth = pairs["depth"][sl]
-        # g at the pair's points: only L and R carry derivatives (the camera's); the
+        # g at the pair's six points, stacked into one array of lanes (point set i at lanes
+        # i P .. (i + 1) P - 1, P pairs): only L's and R's values carry derivatives on; the
         # neighbours across give the edge's normal, detached
-        rays = [self.film_rays(*points[name]) for name in POINTS[:2]]
-        with dr.suspend_grad():
-            rays += [self.film_rays(*points[name]) for name in POINTS[2:]]
-        dr.eval(rays)
-        his = [_evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
-               for ray in rays]
-        g = self.crossing(table, terms, rays, his, L, R, kind, light)
+        count = hi - lo
+        ray = self.film_rays(*(np.concatenate([points[name][i] for name in POINTS])
+                               for i in range(2)))
+        dr.eval(ray)
+        si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
+        g = self.crossing(table, terms, ray, si, L, R, kind, light)
         if (depth >= 0).any():
-            g = self.chain_crossing(table, terms, rays, his, L, R, kind, depth, g, light)
-        dr.eval(*g)
-        g_l, g_r = g[:2]
-        gl, gr, gla, gra, glb, grb = (dr.detach(v).numpy().astype(np.float64) for v in g)
+            g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light)
+        dr.eval(g)
+        lane = dr.arange(mi.UInt32, count)
+        g_l = dr.gather(mi.Float, g, lane)
+        g_r = dr.gather(mi.Float, g, lane + dr.opaque(mi.UInt32, count))
+        gl, gr, gla, gra, glb, grb = dr.detach(g).numpy().astype(np.float64).reshape(
+            len(POINTS), count)
         along = gr - gl  # dg per lattice unit along the pair's axis, across the crossing
         valid = (np.sign(gl) != np.sign(gr)) & (np.abs(along) > 0) & np.isfinite(along)
         w = np.clip(np.where(valid, gl / np.where(valid, gl - gr, 1.0), 0.5), 0.0, 1.0)
@@ -657,18 +672,16 @@ class Boundary:
             pixels.append(np.where(axis == 1, band * self.width + along, along * self.width + band))
         return np.stack(pixels, -1), np.stack(fractions, -1)
 
-    def crossing(self, table, terms, rays, his, L, R, kind, light):
-        """g at the rays of the pair's POINTS (Floats, attached)."""
-        count = len(kind)
-        choice = self.visibility(table, rays, (self.shape[L], self.prim[L], self.t[L]),
+    def crossing(self, table, terms, ray, si, L, R, kind, light):
+        """g at the stacked rays ``ray`` of the pairs' POINTS, hitting ``si`` (a Float, attached)."""
+        choice = self.visibility(table, ray, (self.shape[L], self.prim[L], self.t[L]),
                                  (self.shape[R], self.prim[R], self.t[R]))
         if (kind == SHADOW).any():
             blocker = self.blocker(self.lit, self.occluder, light, L, R)
-            choice = self.shadow_crossing(table, rays, his, light, blocker, kind == SHADOW,
-                                          choice)
+            choice = self.shadow_crossing(table, ray, si, light, blocker, kind == SHADOW, choice)
         # checker lines
         if (kind == CHECKER).any():
-            choice = self.checker_crossing(terms, his, self.cell[L], self.cell[R],
+            choice = self.checker_crossing(terms, si, self.cell[L], self.cell[R],
                                            kind == CHECKER, choice)
         return choice
 
@@ -680,112 +693,102 @@ class Boundary:
         return np.where(blocked_l[:, None], occluder[index, L[0], L[1]],
                         occluder[index, R[0], R[1]])
 
-    def shadow_crossing(self, table, rays, his, light, blocker, which, g):
+    def shadow_crossing(self, table, ray, si, light, blocker, which, g):
         """g of the shadow pairs ``which`` (numpy) of light ``light`` (per pair) at the hits
-        ``his`` of ``rays``: the blocking primitive's inside function on the shadow rays;
-        where the unlit sample has no blocker, it faces away from the light (the terminator:
-        N.L) or lies outside a spot's cone (cos a, where its sign differs between L and R)."""
-        unblocked = jit_array(mi.Bool, blocker[:, 0] == NO_HIT)
-        out = list(g)
+        ``si`` of the stacked rays ``ray``: the blocking primitive's inside function on the
+        shadow rays; where the unlit sample has no blocker, it faces away from the light
+        (the terminator: N.L) or lies outside a spot's cone (cos a, where its sign differs
+        between L and R)."""
+        unblocked = jit_array(mi.Bool, stacked(blocker[:, 0] == NO_HIT))
         for j, source in enumerate(self.lights):
             mask = which & (light == j)
             if not mask.any():
                 continue
-            shadows, facing, cone = [], [], []
-            for ray, si in zip(rays, his):
-                wi, _, _ = source.illuminate(si.p)
-                shadows.append(mi.Ray3f(si.p, wi))
-                facing.append(dr.dot(self.tracer.facing_normal(si, ray), wi))
-                if getattr(source, "kind", None) == "spotlight":
-                    cone.append(spot_cosine(source, wi))
-            if cone:  # a spot's cone edge (cos a = 0) rather than the terminator
+            wi, _, _ = source.illuminate(si.p)
+            shadow = mi.Ray3f(si.p, wi)
+            facing = dr.dot(self.tracer.facing_normal(si, ray), wi)
+            if getattr(source, "kind", None) == "spotlight":  # a spot's cone edge (cos a = 0)
+                cone = spot_cosine(source, wi)                # rather than the terminator
                 with dr.suspend_grad():
-                    dr.eval(cone[0], cone[1])
-                    crosses = np.sign(cone[0].numpy()) != np.sign(cone[1].numpy())
-                facing = [dr.select(jit_array(mi.Bool, crosses), c, f)
-                          for c, f in zip(cone, facing)]
-            edge = self.crossed_edge(table, shadows, blocker[:, 0], blocker[:, 1])
-            for i, shadow in enumerate(shadows):
-                gs = self.inside(table, shadow, blocker[:, 0], blocker[:, 1], edge)
-                gs = dr.select(unblocked, facing[i], gs)
-                out[i] = dr.select(jit_array(mi.Bool, mask), gs, out[i])
-        return out
+                    cos_l, cos_r = at_l_and_r(cone, len(which))
+                facing = dr.select(jit_array(mi.Bool, stacked(np.sign(cos_l) != np.sign(cos_r))),
+                                   cone, facing)
+            edge = self.crossed_edge(table, shadow, blocker[:, 0], blocker[:, 1])
+            gs = self.inside(table, shadow, stacked(blocker[:, 0]), stacked(blocker[:, 1]),
+                             stacked(edge))
+            g = dr.select(jit_array(mi.Bool, stacked(mask)), dr.select(unblocked, facing, gs), g)
+        return g
 
-    def visibility(self, table, rays, left, right):
-        """g of a visibility edge between the rays of L and R (the first two of ``rays``),
-        which see (shape, prim, t) ``left`` and ``right``: N is the nearer; N's inside
-        function where the other ray's line misses N's primitive, else the other's, else (a
-        crease) the difference of the two primitives' distances."""
+    def visibility(self, table, ray, left, right):
+        """g of a visibility edge between the rays of L and R (of the stacked rays ``ray``),
+        which see (shape, prim, t) ``left`` and ``right`` (per pair): N is the nearer; N's
+        inside function where the other ray's line misses N's primitive, else the other's,
+        else (a crease) the difference of the two primitives' distances."""
         near_is_l = left[2] <= right[2]
         n_shape, n_prim = (np.where(near_is_l, a, b) for a, b in zip(left[:2], right[:2]))
         f_shape, f_prim = (np.where(near_is_l, b, a) for a, b in zip(left[:2], right[:2]))
-        n_edge = self.crossed_edge(table, rays, n_shape, n_prim)
-        f_edge = self.crossed_edge(table, rays, f_shape, f_prim)
-        gn = [self.inside(table, ray, n_shape, n_prim, n_edge) for ray in rays]
-        gf = [self.inside(table, ray, f_shape, f_prim, f_edge) for ray in rays]
-        crease = [self.depth(table, ray, n_shape, n_prim) - self.depth(table, ray, f_shape, f_prim)
-                  for ray in rays]
+        n_edge = self.crossed_edge(table, ray, n_shape, n_prim)
+        f_edge = self.crossed_edge(table, ray, f_shape, f_prim)
+        n_shape, n_prim, n_edge, f_shape_s, f_prim, f_edge = (
+            stacked(a) for a in (n_shape, n_prim, n_edge, f_shape, f_prim, f_edge))
+        gn = self.inside(table, ray, n_shape, n_prim, n_edge)
+        gf = self.inside(table, ray, f_shape_s, f_prim, f_edge)
+        crease = self.depth(table, ray, n_shape, n_prim) - self.depth(table, ray, f_shape_s, f_prim)
         dr.eval(gn, gf, crease)
-        gn_l, gn_r = gn[0].numpy(), gn[1].numpy()
-        gf_l, gf_r = gf[0].numpy(), gf[1].numpy()
+        gn_l, gn_r = at_l_and_r(dr.detach(gn), len(f_shape))
+        gf_l, gf_r = at_l_and_r(dr.detach(gf), len(f_shape))
         use_n = np.sign(gn_l) != np.sign(gn_r)
         use_f = ~use_n & (f_shape < STOP) & (np.sign(gf_l) != np.sign(gf_r))
-        return [dr.select(jit_array(mi.Bool, use_n), a, dr.select(jit_array(mi.Bool, use_f), b, c))
-                for a, b, c in zip(gn, gf, crease)]
+        return dr.select(jit_array(mi.Bool, stacked(use_n)), gn,
+                         dr.select(jit_array(mi.Bool, stacked(use_f)), gf, crease))
 
-    def chain_crossing(self, table, terms, rays, his, L, R, kind, depth, g, light):
+    def chain_crossing(self, table, terms, ray, si, L, R, kind, depth, g, light):
         """g of the pairs whose edge is seen along the specular chain, at bounce ``depth``:
         each ray's chain replayed, attached, then the visibility, checker or shadow function
         there (``light``: per pair, the light of a shadow), or (total internal reflection
-        switching) the refraction margin at the surface it leaves."""
-        finals, margins = [], []
-        for ray, si in zip(rays, his):
-            final_ray, final_si, margin = ray, si, mi.Float(0.0)
-            for d in range(int(depth.max()) + 1):
-                at = jit_array(mi.Bool, depth == d)
-                margin = dr.select(at, self.refraction_margin(terms, si, ray), margin)
-                ray, _, _ = self.chain_step(terms, si, ray)
-                dr.eval(ray)
-                si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
-                final_ray = mi.Ray3f(dr.select(at, ray.o, final_ray.o),
-                                     dr.select(at, ray.d, final_ray.d))
-                final_si = _merge(at, si, final_si)
-            finals.append((final_ray, final_si))
-            margins.append(margin)
+        switching) the refraction margin at the surface it leaves (the stacked rays
+        ``ray``, hitting ``si``)."""
+        bounce = stacked(depth)
+        final_ray, final_si, margin = ray, si, mi.Float(0.0)
+        for d in range(int(depth.max()) + 1):
+            at = jit_array(mi.Bool, bounce == d)
+            margin = dr.select(at, self.refraction_margin(terms, si, ray), margin)
+            ray, _, _ = self.chain_step(terms, si, ray)
+            dr.eval(ray)
+            si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
+            final_ray = mi.Ray3f(dr.select(at, ray.o, final_ray.o),
+                                 dr.select(at, ray.d, final_ray.d))
+            final_si = _merge(at, si, final_si)
         d = np.maximum(depth, 0)
         left = tuple(a[d, L[0], L[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
         right = tuple(a[d, R[0], R[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
-        vis = self.visibility(table, [r for r, _ in finals], left, right)
-        mask = jit_array(mi.Bool, kind == CHAIN_VISIBILITY)
-        g = [dr.select(mask, a, b) for a, b in zip(vis, g)]
-        mask = jit_array(mi.Bool, kind == CHAIN_TIR)
-        g = [dr.select(mask, a, b) for a, b in zip(margins, g)]
+        vis = self.visibility(table, final_ray, left, right)
+        g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_VISIBILITY)), vis, g)
+        g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_TIR)), margin, g)
         if (kind == CHAIN_CHECKER).any():
             cl, cr = self.chain_cell[d, L[0], L[1]], self.chain_cell[d, R[0], R[1]]
-            g = self.checker_crossing(terms, [s for _, s in finals], cl, cr,
-                                      kind == CHAIN_CHECKER, g)
+            g = self.checker_crossing(terms, final_si, cl, cr, kind == CHAIN_CHECKER, g)
         if (kind == CHAIN_SHADOW).any():
             index = d * len(self.lights) + light
             blocker = self.blocker(self.chain_lit, self.chain_occluder, index, L, R)
-            g = self.shadow_crossing(table, [r for r, _ in finals], [s for _, s in finals],
-                                     light, blocker, kind == CHAIN_SHADOW, g)
+            g = self.shadow_crossing(table, final_ray, final_si, light, blocker,
+                                     kind == CHAIN_SHADOW, g)
         return g
 
-    def checker_crossing(self, terms, his, cl, cr, which, g):
-        """g = u / size - m (or v) of the pairs ``which`` (numpy mask), at the hits ``his``
-        (the hit of the first ray gives the size); cl, cr: the cells at L and R."""
+    def checker_crossing(self, terms, si, cl, cr, which, g):
+        """g = u / size - m (or v) of the pairs ``which`` (numpy mask), at the hits ``si`` of
+        the stacked rays (the size: at L's hit); cl, cr: the cells at L and R."""
         count = len(which)
         coord = np.where(cl[:, 0] != cr[:, 0], 0, 1)
         line = np.maximum(cl, cr)[np.arange(count), coord].astype(np.float32)
-        slot = terms.surfaces.slot(his[0].shape, his[0].prim_index, his[0].is_valid())
+        slot = terms.surfaces.slot(si.shape, si.prim_index, si.is_valid())
         size = dr.gather(mi.Float, terms.surfaces.layout.checker_size, slot)
+        pair = dr.arange(mi.UInt32, dr.width(size)) % dr.opaque(mi.UInt32, count)
+        size = dr.gather(mi.Float, size, pair)  # (L's: the first point set's lanes)
         size = dr.select(size > 0, size, 1.0)
-        mask = jit_array(mi.Bool, which)
-        out = list(g)
-        for i, si in enumerate(his):
-            u = dr.select(jit_array(mi.Bool, coord == 0), si.uv.x, si.uv.y)
-            out[i] = dr.select(mask, u / size - jit_array(mi.Float, line), out[i])
-        return out
+        u = dr.select(jit_array(mi.Bool, stacked(coord == 0)), si.uv.x, si.uv.y)
+        return dr.select(jit_array(mi.Bool, stacked(which)),
+                         u / size - jit_array(mi.Float, stacked(line)), g)
 
     def inside(self, table, ray, shape, prim, edge=None):
         """The inside function of primitive (shape, prim) for each ray (numpy ids): > 0 where
@@ -830,24 +833,24 @@ class Boundary:
         return [sigma * dr.dot(dr.cross(a - ray.o, b - ray.o), d) / dr.norm(b - a)
                 for a, b in ((p0, p1), (p1, p2), (p2, p0))]
 
-    def crossed_edge(self, table, rays, shape, prim):
+    def crossed_edge(self, table, ray, shape, prim):
         """Per pair (numpy): the edge of the face (shape, prim) whose function changes sign
-        between the rays of L and R (-1: none, or not a face)."""
-        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-        valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
+        between the rays of L and R (of the stacked rays ``ray``; -1: none, or not a face)."""
         if not table.has_meshes:
             return np.full(len(shape), -1)
+        shape_s, prim_s = stacked(shape), stacked(prim)
+        ids = jit_array(mi.UInt32, np.where(shape_s == NO_HIT, 0, shape_s).astype(np.uint32))
+        valid = jit_array(mi.Bool, shape_s != NO_HIT) & (ids < table.size)
         kind = dr.gather(mi.UInt32, table.kind, ids, valid)
         row = dr.gather(mi.UInt32, table.first, ids, valid)
         mesh = valid & ((kind & MESH) != 0)
         with dr.suspend_grad():
-            edges = [self.edge_functions(table, ray, dr.normalize(ray.d), row, prim, mesh)
-                     for ray in rays[:2]]
+            edges = self.edge_functions(table, ray, dr.normalize(ray.d), row, prim_s, mesh)
             dr.eval(edges, mesh)
-            el, er = ([e.numpy() for e in side] for side in edges)
-        flips = np.stack([np.sign(a) != np.sign(b) for a, b in zip(el, er)], -1)
+            sides = [at_l_and_r(e, len(shape)) for e in edges]
+        flips = np.stack([np.sign(el) != np.sign(er) for el, er in sides], -1)
         edge = np.where(flips.any(-1), np.argmax(flips, -1), -1)
-        return np.where(mesh.numpy(), edge, -1)
+        return np.where(mesh.numpy()[:len(shape)], edge, -1)
 
     def depth(self, table, ray, shape, prim):
         """The distance along each ray to the primitive (shape, prim)'s plane or sphere."""
