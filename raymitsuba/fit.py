@@ -286,7 +286,8 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     if iters < 0 or not (lr > 0):
         raise FitError("need iters >= 0 and lr > 0")
     spp = int(spp or loaded.options.spp)
-    target_tensor = mi.TensorXf(target)
+    from raymitsuba.plugins.whitted.arrays import jit_tensor
+    target_tensor = jit_tensor(target)  # (aligned: the loss's kernels the same in every fit)
     grids = scan_grids(scan, keys, params)
 
     started = time.perf_counter()

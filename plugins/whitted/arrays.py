@@ -31,6 +31,15 @@ def jit_array(cls, values):
     return cls(out)
 
 
+def jit_tensor(values):
+    """A float32 numpy array (an image) as a ``mi.TensorXf`` of its shape, from an aligned
+    private copy (see the module docstring)."""
+    import mitsuba as mi
+
+    values = np.asarray(values, np.float32)
+    return mi.TensorXf(jit_array(mi.Float, values.ravel()), shape=values.shape)
+
+
 _DTYPES = {dr.VarType.Float32: np.float32, dr.VarType.Float64: np.float64,
            dr.VarType.UInt32: np.uint32, dr.VarType.Int32: np.int32,
            dr.VarType.UInt64: np.uint64, dr.VarType.Int64: np.int64, dr.VarType.Bool: np.bool_}

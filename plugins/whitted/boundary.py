@@ -55,12 +55,19 @@ chosen, whose sign differs between the two samples:
   reflection switches at a surface of the chain, the refraction margin 1 - (eta_i /
   eta_t)^2 (1 - cos^2 theta_i) there.
 
-g is evaluated with derivatives (the camera's rays and the geometry as the keys attach them,
-``geometry_ad.py``; the lights' own parameters) at the two samples L, R and, detached, at
-the third lattice point O beside L. With g linear between them the crossing lies at the
-fraction w = g_L / (g_L - g_R) of the way from L to R, moving at du*/dtheta =
--dg(u*)/dtheta / (g_R - g_L) lattice units, and the row (column) integral of f changes by
-(f_L - f_R) du*/dtheta. Each pair adds, to the pixel in which the crossing lies,
+g is evaluated at the two samples L, R and at their neighbours across the axis (for the
+edge's normal), detached. With g linear between L and R the crossing lies at the fraction
+w = g_L / (g_L - g_R) of the way from L to R. Where edges crowd, g is seldom linear over a
+lattice unit (a checker seen through a glass ball's rim, compressed), so g is evaluated
+again, with derivatives (the camera's rays and the geometry as the keys attach them,
+``geometry_ad.py``; the lights' own parameters), at L, R and at two points either side of
+that estimate, a quarter of its distance to the nearer sample away. Where those two
+bracket the crossing, it lies between them, moving at du*/dtheta = -dg(u*)/dtheta / g'
+lattice units, with dg(u*)/dtheta their mean's derivative and g' their slope; elsewhere
+with L's and R's, interpolated, and the secant g_R - g_L (eta through glass over a
+checkerboard: per-pixel error 20.9 % -> 11.0 % at k = 4 for the refinement; the
+terminator 3.6 % -> 1.9 %). The row (column) integral of f changes by (f_L - f_R)
+du*/dtheta. Each pair adds, to the pixel in which the crossing lies,
 
     (f_L - f_R) du*/dtheta / k^2 * n_a^2
 
@@ -100,6 +107,9 @@ BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 16 + 12 + CHAIN_DEPTH * (4 + 4 + 4 + 16 + 1)
 BYTES_PER_LIGHT = (1 + 8) * (1 + CHAIN_DEPTH)  # lit and blocker, first hit and chain
 STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
 LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
+# the crossing's refinement: g at two points either side of it, this share of its distance
+# to the nearer sample away, at least REFINE_MIN lattice units (float32's g resolves it)
+REFINE, REFINE_MIN = 0.25, 0.005
 # the values of a light that may be keys (those it has: ``plugins/light.py``)
 LIGHT_VALUES = ("color", "position", "direction", "shape_coefficient")
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
@@ -173,16 +183,24 @@ def _evaluated(si):
     return si
 
 
-def stacked(values):
-    """A per-pair numpy array repeated for each of the POINTS (the lanes of the stacked
-    rays: point set i at lanes i P .. (i + 1) P - 1)."""
-    return np.tile(values, (len(POINTS),) + (1,) * (values.ndim - 1))
+def stacked(values, lanes):
+    """A per-pair numpy array (P pairs) repeated for each point set of stacked rays of
+    ``lanes`` lanes (point set i at lanes i P .. (i + 1) P - 1)."""
+    return np.tile(values, (lanes // len(values),) + (1,) * (values.ndim - 1))
 
 
 def at_l_and_r(value, count):
     """The values (numpy) of a stacked Float (evaluated) at L and at R, ``count`` pairs."""
     host = value.numpy()
     return host[:count], host[count:2 * count]
+
+
+def lanes_of(stack, i, count):
+    """Point set i of a stacked Float (``count`` pairs): its lanes i P .. (i + 1) P - 1. (Its
+    adjoint scatters directly: by default the LLVM backend would expand the stack per thread
+    with its size a constant of the kernel, compiled anew for each count of pairs.)"""
+    lane = dr.arange(mi.UInt32, count) + dr.opaque(mi.UInt32, i * count)
+    return dr.gather(mi.Float, stack, lane, mode=dr.ReduceMode.Direct)
 
 
 def _host(vector):
@@ -529,32 +547,35 @@ class Boundary:
         """(Color3f surrogate per pair lo .. hi - 1, zero-valued, with the derivative of the
         pair's term; the pixel each term goes to, numpy)."""
         terms = self.tracer.scene_terms(self.scene)  # attached: the keys' derivatives
-        table = terms.geometry
         sl = slice(lo, hi)
+        count = hi - lo
         points = {name: tuple(a[sl] for a in pairs[name]) for name in POINTS}
         L, R = points["L"], points["R"]
         kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
-        depth = pairs["depth"][sl]
-        # g at the pair's six points, stacked into one array of lanes (point set i at lanes
-        # i P .. (i + 1) P - 1, P pairs): only L's and R's values carry derivatives on; the
-        # neighbours across give the edge's normal, detached
-        count = hi - lo
-        ray = self.film_rays(*(np.concatenate([points[name][i] for name in POINTS])
-                               for i in range(2)))
-        dr.eval(ray)
-        si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
-        g = self.crossing(table, terms, ray, si, L, R, kind, light)
-        if (depth >= 0).any():
-            g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light)
-        dr.eval(g)
-        lane = dr.arange(mi.UInt32, count)
-        g_l = dr.gather(mi.Float, g, lane)
-        g_r = dr.gather(mi.Float, g, lane + dr.opaque(mi.UInt32, count))
-        gl, gr, gla, gra, glb, grb = dr.detach(g).numpy().astype(np.float64).reshape(
-            len(POINTS), count)
-        along = gr - gl  # dg per lattice unit along the pair's axis, across the crossing
-        valid = (np.sign(gl) != np.sign(gr)) & (np.abs(along) > 0) & np.isfinite(along)
+        crossing = (L, R, kind, light, pairs["depth"][sl])  # what picks g (see g_at)
+        # g at the lattice points (detached): the crossing where it changes sign, linear
+        # between L and R
+        with dr.suspend_grad():
+            _, (gl, gr, gla, gra, glb, grb) = self.g_at(
+                terms, [points[name] for name in POINTS], *crossing)
+        valid = (np.sign(gl) != np.sign(gr)) & (gl != gr) & np.isfinite(gr - gl)
         w = np.clip(np.where(valid, gl / np.where(valid, gl - gr, 1.0), 0.5), 0.0, 1.0)
+        # refined where g curves between L and R (a checker seen through a glass ball's
+        # rim: its lines compressed, u far from linear): g at two points either side of the
+        # crossing, REFINE of its distance to the nearer sample (at least REFINE_MIN):
+        # their values bracket the crossing again, their difference is g's slope across
+        # it, their mean's derivative g's there. Otherwise L's and R's, interpolated.
+        eps = np.clip(REFINE * np.minimum(w, 1.0 - w), REFINE_MIN, REFINE)
+        beside = [self.along_axis(L, axis, w + side * eps) for side in (-1.0, 1.0)]
+        g, (_, _, gm, gp) = self.g_at(terms, [L, R] + beside, *crossing)
+        g_l, g_r, g_m, g_p = (lanes_of(g, i, count) for i in range(4))
+        bracket = valid & (np.sign(gm) != np.sign(gp)) & np.isfinite(gp - gm)
+        along = np.where(bracket, (gp - gm) / (2.0 * eps), gr - gl)  # dg per lattice unit
+        w = np.where(bracket, np.clip(w - eps + 2.0 * eps * gm / np.where(bracket, gm - gp, 1.0),
+                                      0.0, 1.0), w)
+        refined = jit_array(mi.Bool, bracket)
+        w32 = jit_array(mi.Float, w.astype(np.float32))
+        g_star = dr.select(refined, 0.5 * (g_m + g_p), (1.0 - w32) * g_l + w32 * g_r)
 
         def span(a, b):  # lattice units between two neighbours across the axis
             return np.maximum(np.abs(a[0] - b[0]) + np.abs(a[1] - b[1]), 1)
@@ -564,14 +585,34 @@ class Boundary:
         normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
         df = self.jump(L, R, axis, w, kind)
         scale = np.where(valid, normal2 / (self.k ** 2 * np.where(valid, along, 1.0)), 0.0)
-        w32 = jit_array(mi.Float, w.astype(np.float32))
-        g_star = (1.0 - w32) * g_l + w32 * g_r
         rate = -(g_star - dr.detach(g_star)) * jit_array(mi.Float, scale.astype(np.float32))
         surrogate = mi.Color3f(*(jit_array(mi.Float, df[:, c]) for c in range(3))) * rate
-        rim = self.rim_correction(terms, table, kind, axis, L, R, w, np.where(valid, normal2, 0.0))
+        rim = self.rim_correction(terms, terms.geometry, kind, axis, L, R, w,
+                                  np.where(valid, normal2, 0.0))
         if rim is not None:
             surrogate += rim
         return surrogate, self.spread(L, axis, w, np.abs(across) / np.maximum(np.abs(along), 1e-30))
+
+    def g_at(self, terms, sets, L, R, kind, light, depth):
+        """g at the point sets ``sets`` (a list of (y, x) lattice coordinates, numpy, one
+        point per pair; the first two L and R, whose values pick g's function for each
+        pair) traced as one stack of rays: (a Float of len(sets) P lanes, point set i at
+        lanes i P .. (i + 1) P - 1, attached as ``terms`` and the camera's keys are; its
+        values as numpy (len(sets), P))."""
+        table = terms.geometry
+        ray = self.film_rays(*(np.concatenate([point[i] for point in sets]) for i in range(2)))
+        dr.eval(ray)
+        si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
+        g = self.crossing(table, terms, ray, si, L, R, kind, light)
+        if (depth >= 0).any():
+            g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light)
+        dr.eval(g)
+        return g, dr.detach(g).numpy().astype(np.float64).reshape(len(sets), len(kind))
+
+    @staticmethod
+    def along_axis(L, axis, offset):
+        """The lattice points (y, x) ``offset`` lattice units from L along each pair's axis."""
+        return (np.where(axis == 1, L[0], L[0] + offset), np.where(axis == 1, L[1] + offset, L[1]))
 
     def rim_correction(self, terms, table, kind, axis, L, R, w, normal2):
         """The lattice's error on the rim of a sphere (or ellipsoid) that moves across the
@@ -673,7 +714,7 @@ class Boundary:
         return np.stack(pixels, -1), np.stack(fractions, -1)
 
     def crossing(self, table, terms, ray, si, L, R, kind, light):
-        """g at the stacked rays ``ray`` of the pairs' POINTS, hitting ``si`` (a Float, attached)."""
+        """g at the stacked rays ``ray`` (see g_at), hitting ``si`` (a Float, attached)."""
         choice = self.visibility(table, ray, (self.shape[L], self.prim[L], self.t[L]),
                                  (self.shape[R], self.prim[R], self.t[R]))
         if (kind == SHADOW).any():
@@ -699,7 +740,8 @@ class Boundary:
         shadow rays; where the unlit sample has no blocker, it faces away from the light
         (the terminator: N.L) or lies outside a spot's cone (cos a, where its sign differs
         between L and R)."""
-        unblocked = jit_array(mi.Bool, stacked(blocker[:, 0] == NO_HIT))
+        lanes = dr.width(si.p)
+        unblocked = jit_array(mi.Bool, stacked(blocker[:, 0] == NO_HIT, lanes))
         for j, source in enumerate(self.lights):
             mask = which & (light == j)
             if not mask.any():
@@ -711,12 +753,13 @@ class Boundary:
                 cone = spot_cosine(source, wi)                # rather than the terminator
                 with dr.suspend_grad():
                     cos_l, cos_r = at_l_and_r(cone, len(which))
-                facing = dr.select(jit_array(mi.Bool, stacked(np.sign(cos_l) != np.sign(cos_r))),
-                                   cone, facing)
+                crosses = stacked(np.sign(cos_l) != np.sign(cos_r), lanes)
+                facing = dr.select(jit_array(mi.Bool, crosses), cone, facing)
             edge = self.crossed_edge(table, shadow, blocker[:, 0], blocker[:, 1])
-            gs = self.inside(table, shadow, stacked(blocker[:, 0]), stacked(blocker[:, 1]),
-                             stacked(edge))
-            g = dr.select(jit_array(mi.Bool, stacked(mask)), dr.select(unblocked, facing, gs), g)
+            gs = self.inside(table, shadow, stacked(blocker[:, 0], lanes),
+                             stacked(blocker[:, 1], lanes), stacked(edge, lanes))
+            g = dr.select(jit_array(mi.Bool, stacked(mask, lanes)),
+                          dr.select(unblocked, facing, gs), g)
         return g
 
     def visibility(self, table, ray, left, right):
@@ -724,13 +767,14 @@ class Boundary:
         which see (shape, prim, t) ``left`` and ``right`` (per pair): N is the nearer; N's
         inside function where the other ray's line misses N's primitive, else the other's,
         else (a crease) the difference of the two primitives' distances."""
+        lanes = dr.width(ray.d)
         near_is_l = left[2] <= right[2]
         n_shape, n_prim = (np.where(near_is_l, a, b) for a, b in zip(left[:2], right[:2]))
         f_shape, f_prim = (np.where(near_is_l, b, a) for a, b in zip(left[:2], right[:2]))
         n_edge = self.crossed_edge(table, ray, n_shape, n_prim)
         f_edge = self.crossed_edge(table, ray, f_shape, f_prim)
         n_shape, n_prim, n_edge, f_shape_s, f_prim, f_edge = (
-            stacked(a) for a in (n_shape, n_prim, n_edge, f_shape, f_prim, f_edge))
+            stacked(a, lanes) for a in (n_shape, n_prim, n_edge, f_shape, f_prim, f_edge))
         gn = self.inside(table, ray, n_shape, n_prim, n_edge)
         gf = self.inside(table, ray, f_shape_s, f_prim, f_edge)
         crease = self.depth(table, ray, n_shape, n_prim) - self.depth(table, ray, f_shape_s, f_prim)
@@ -739,8 +783,8 @@ class Boundary:
         gf_l, gf_r = at_l_and_r(dr.detach(gf), len(f_shape))
         use_n = np.sign(gn_l) != np.sign(gn_r)
         use_f = ~use_n & (f_shape < STOP) & (np.sign(gf_l) != np.sign(gf_r))
-        return dr.select(jit_array(mi.Bool, stacked(use_n)), gn,
-                         dr.select(jit_array(mi.Bool, stacked(use_f)), gf, crease))
+        return dr.select(jit_array(mi.Bool, stacked(use_n, lanes)), gn,
+                         dr.select(jit_array(mi.Bool, stacked(use_f, lanes)), gf, crease))
 
     def chain_crossing(self, table, terms, ray, si, L, R, kind, depth, g, light):
         """g of the pairs whose edge is seen along the specular chain, at bounce ``depth``:
@@ -748,7 +792,8 @@ class Boundary:
         there (``light``: per pair, the light of a shadow), or (total internal reflection
         switching) the refraction margin at the surface it leaves (the stacked rays
         ``ray``, hitting ``si``)."""
-        bounce = stacked(depth)
+        lanes = dr.width(ray.d)
+        bounce = stacked(depth, lanes)
         final_ray, final_si, margin = ray, si, mi.Float(0.0)
         for d in range(int(depth.max()) + 1):
             at = jit_array(mi.Bool, bounce == d)
@@ -763,8 +808,8 @@ class Boundary:
         left = tuple(a[d, L[0], L[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
         right = tuple(a[d, R[0], R[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
         vis = self.visibility(table, final_ray, left, right)
-        g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_VISIBILITY)), vis, g)
-        g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_TIR)), margin, g)
+        g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_VISIBILITY, lanes)), vis, g)
+        g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_TIR, lanes)), margin, g)
         if (kind == CHAIN_CHECKER).any():
             cl, cr = self.chain_cell[d, L[0], L[1]], self.chain_cell[d, R[0], R[1]]
             g = self.checker_crossing(terms, final_si, cl, cr, kind == CHAIN_CHECKER, g)
@@ -778,6 +823,7 @@ class Boundary:
     def checker_crossing(self, terms, si, cl, cr, which, g):
         """g = u / size - m (or v) of the pairs ``which`` (numpy mask), at the hits ``si`` of
         the stacked rays (the size: at L's hit); cl, cr: the cells at L and R."""
+        lanes = dr.width(si.t)
         count = len(which)
         coord = np.where(cl[:, 0] != cr[:, 0], 0, 1)
         line = np.maximum(cl, cr)[np.arange(count), coord].astype(np.float32)
@@ -786,9 +832,9 @@ class Boundary:
         pair = dr.arange(mi.UInt32, dr.width(size)) % dr.opaque(mi.UInt32, count)
         size = dr.gather(mi.Float, size, pair)  # (L's: the first point set's lanes)
         size = dr.select(size > 0, size, 1.0)
-        u = dr.select(jit_array(mi.Bool, stacked(coord == 0)), si.uv.x, si.uv.y)
-        return dr.select(jit_array(mi.Bool, stacked(which)),
-                         u / size - jit_array(mi.Float, stacked(line)), g)
+        u = dr.select(jit_array(mi.Bool, stacked(coord == 0, lanes)), si.uv.x, si.uv.y)
+        return dr.select(jit_array(mi.Bool, stacked(which, lanes)),
+                         u / size - jit_array(mi.Float, stacked(line, lanes)), g)
 
     def inside(self, table, ray, shape, prim, edge=None):
         """The inside function of primitive (shape, prim) for each ray (numpy ids): > 0 where
@@ -836,9 +882,10 @@ class Boundary:
     def crossed_edge(self, table, ray, shape, prim):
         """Per pair (numpy): the edge of the face (shape, prim) whose function changes sign
         between the rays of L and R (of the stacked rays ``ray``; -1: none, or not a face)."""
+        lanes = dr.width(ray.d)
         if not table.has_meshes:
             return np.full(len(shape), -1)
-        shape_s, prim_s = stacked(shape), stacked(prim)
+        shape_s, prim_s = stacked(shape, lanes), stacked(prim, lanes)
         ids = jit_array(mi.UInt32, np.where(shape_s == NO_HIT, 0, shape_s).astype(np.uint32))
         valid = jit_array(mi.Bool, shape_s != NO_HIT) & (ids < table.size)
         kind = dr.gather(mi.UInt32, table.kind, ids, valid)

@@ -44,7 +44,7 @@ from raymitsuba import options
 from raymitsuba.options import RenderOptions
 
 from . import antialias, boundary, guards
-from .arrays import jit_array
+from .arrays import jit_array, jit_tensor
 from .camera import box_filter, camera_rays, pixel_means
 from .chunks import Chunker, Job, probe
 from .tree import Tracer
@@ -113,7 +113,7 @@ class Whitted(mi.CppADIntegrator):
     # -- mi.Integrator interface ---------------------------------------------------------------
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
         image = self.render_array(scene, sensor, spp)
-        return mi.TensorXf(image)
+        return jit_tensor(image)  # (a private, aligned copy: see arrays.py)
 
     def render_forward(self, scene, params, sensor=0, seed=0, spp=0):
         sensor, spp, width, height = self._setup(scene, sensor, spp)
@@ -140,7 +140,7 @@ class Whitted(mi.CppADIntegrator):
             chunker.run(job, visit, ad=True)
         if edges is not None:
             edges.forward(grads, last=True)
-        return mi.TensorXf(grads.reshape(height, width, 3))
+        return jit_tensor(grads.reshape(height, width, 3))
 
     def render_backward(self, scene, params, grad_in, sensor=0, seed=0, spp=0):
         sensor, spp, width, height = self._setup(scene, sensor, spp)
