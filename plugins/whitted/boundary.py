@@ -158,6 +158,11 @@ def hurwitz_zeta_half(q):
     return total + tail
 
 
+def has_cone(light):
+    """Whether ``light`` is a spot, whose cone (cos a = 0) is an edge (light.py's kinds)."""
+    return getattr(light, "kind", None) == "spotlight"
+
+
 def spot_cosine(light, wi):
     """cos a of a spotlight at the points whose direction toward it is ``wi``: > 0 inside
     its cone (light.py)."""
@@ -371,7 +376,7 @@ class Boundary:
         for light in self.lights:
             wi, dist, _ = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
-            if getattr(light, "kind", None) == "spotlight":  # its cone, cos a > 0
+            if has_cone(light):  # its cone, cos a > 0
                 active &= spot_cosine(light, wi) > 0
             shadow = self.tracer.spawn_ray(si, wi)
             shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
@@ -749,8 +754,8 @@ class Boundary:
             wi, _, _ = source.illuminate(si.p)
             shadow = mi.Ray3f(si.p, wi)
             facing = dr.dot(self.tracer.facing_normal(si, ray), wi)
-            if getattr(source, "kind", None) == "spotlight":  # a spot's cone edge (cos a = 0)
-                cone = spot_cosine(source, wi)                # rather than the terminator
+            if has_cone(source):  # a spot's cone edge (cos a = 0) rather than the terminator
+                cone = spot_cosine(source, wi)
                 with dr.suspend_grad():
                     cos_l, cos_r = at_l_and_r(cone, len(which))
                 crosses = stacked(np.sign(cos_l) != np.sign(cos_r), lanes)
