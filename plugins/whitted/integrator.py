@@ -160,7 +160,8 @@ class Whitted(mi.CppADIntegrator):
                     if job.spp > 1:
                         share *= 1.0 / job.spp
                     dr.schedule(color)
-                    dr.backward_from(color * share, flags=dr.ADFlag.Default | NO_DEPENDENCE_IS_ZERO)
+                    dr.backward_from(color * share,
+                                     flags=dr.ADFlag.Default | NO_DEPENDENCE_IS_ZERO)
                 if edges is not None:
                     edges.collect(job, start, count, color)
 

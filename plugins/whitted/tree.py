@@ -157,6 +157,7 @@ class Tracer:
             ray = self.geometry_ad.camera_rays(ray)
         for depth in range(self.max_depth + 1):
             rays_per_generation.append(dr.width(ray))
+            # (no kr or kt > 0 in the scene: no ray has a child, the tree is one generation)
             last = depth == self.max_depth or not terms.surfaces.any_specular
             step = self.step(scene, terms, ray, depth, not last)
             generation = Generation(step.local)
