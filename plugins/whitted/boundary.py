@@ -28,10 +28,11 @@ than the specular chain, and a pair of samples with two edges between them.
 
 **The lattice.** The samples of all pixels form one uniform grid over the image, spacing
 1/k pixel (sample (sx, sy) of pixel (px, py) is lattice point X = px k + sx, Y = py k + sy).
-Each sample's *key* is recorded while the adjoint pass traces it (:meth:`Boundary.collect`):
-the shape and face hit (and the face's normal), the checker cell, for each light whether it
-is lit and what blocks it, the same of each bounce of the specular chain (with its total
-internal reflection flag), and the sample's color f. These keys take host memory
+Each sample's *key* is traced, detached, in the lattice's own order (:meth:`Boundary.trace_keys`,
+the render's very rays): the shape and face hit (and the face's normal), the checker cell,
+for each light whether it is lit and what blocks it, the same of each bounce of the
+specular chain (with its total internal reflection flag); the sample's color f is recorded
+while the adjoint pass traces it (:meth:`Boundary.collect`). These keys take host memory
 (BYTES_PER_SAMPLE per sample): a lattice whose keys exceed the memory budget is refused
 (BudgetError) before anything is traced.
 
@@ -91,6 +92,8 @@ import numpy as np
 from raymitsuba.options import GIB
 
 from .arrays import jit_array
+from .camera import lattice_rays
+from .chunks import MAX_CHUNK_LANES
 from .guards import BudgetError
 from .hits import MESH, SMOOTH, SPHERE
 from .tree import reflect, refract
@@ -238,7 +241,11 @@ class Boundary:
         self.lights = self.terms.direct
         self.kind_of = self.terms.geometry.kind.numpy()  # HitTable kind bits by shape id
         self.kinds = sorted(moving_kinds(tracer, scene))  # the kinds of pairs formed
-        need = width * height * spp * (BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights))
+        per_sample = BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights)
+        need = width * height * spp * per_sample
+        # the keys are traced in blocks of at most this many samples (their Dr.Jit arrays
+        # before the host's copy: within the budget, and within a chunk's size)
+        self.block_lanes = int(min(MAX_CHUNK_LANES, max(budget // (2 * per_sample), 1)))
         if need > budget:
             raise BudgetError(
                 f"the boundary terms' keys of {width} x {height} x {spp} samples take "
@@ -276,30 +283,34 @@ class Boundary:
         return (p // self.width) * k + s // k, (p % self.width) * k + s % k
 
     def collect(self, job, start, count, color):
-        """Record the keys and colors of a chunk's samples (``color``: one lane per camera
-        ray of the job's pixels start .. start + count - 1)."""
-        if job.pixels is None:  # a range of pixels: written by rows of the lattice
-            first = job.first + start
-
-            def put(target, values):
-                self.put_range(target, first, values)
-        else:
-            y, x = self.lattice_points(job, start, count)
-
-            def put(target, values):
-                target[y, x] = values
-        with dr.suspend_grad():
-            rays = job.rays(self.sensor, start, count)
-            keys = self.keys(rays)
+        """Record the colors of a chunk's samples (``color``: one lane per camera ray of the
+        job's pixels start .. start + count - 1)."""
         color = dr.detach(color)
-        put(self.color, np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1))
-        for name, values in keys.items():
-            target = getattr(self, name)
-            if name in ("lit", "occluder") or name.startswith("chain_"):
-                for j, v in enumerate(values):
-                    put(target[j], v)
-            else:
-                put(target, values)
+        values = np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1)
+        if job.pixels is None:  # a range of pixels: written by rows of the lattice
+            self.put_range(self.color, job.first + start, values)
+        else:
+            self.color[self.lattice_points(job, start, count)] = values
+
+    def trace_keys(self):
+        """The keys of every lattice sample (see :meth:`keys`), traced in blocks of lattice
+        rows in the lattice's own order (the camera rays of ``camera.lattice_rays``, those
+        the render traces, bit for bit), written into the lattice's arrays as they come."""
+        columns, total = self.width * self.k, self.height * self.k
+        block = max(self.block_lanes // columns, 1)
+        for first in range(0, total, block):
+            rows = min(block, total - first)
+            with dr.suspend_grad():
+                keys = self.keys(lattice_rays(self.sensor, self.width, self.height, self.k,
+                                              first, rows))
+            for name, values in keys.items():
+                target = getattr(self, name)
+                if name in ("lit", "occluder") or name.startswith("chain_"):
+                    for j, v in enumerate(values):  # (per light, bounce, or bounce and light)
+                        target[j][first:first + rows] = v.reshape((rows, columns) + v.shape[1:])
+                else:
+                    target[first:first + rows] = values.reshape((rows, columns)
+                                                                + values.shape[1:])
 
     def put_range(self, target, first, values):
         """Write ``values`` (one per lane of the pixels first, first + 1, ...: spp lanes each,
@@ -927,6 +938,7 @@ class Boundary:
     # -- the derivative ----------------------------------------------------------------------------
     def backward(self, grad_in):
         """Propagate the image's adjoint ``grad_in`` (numpy (H W, 3)) through the terms."""
+        self.trace_keys()
         pairs = self.pairs()
         total = len(pairs["kind"])
         for lo in range(0, total, PAIRS_PER_CHUNK):
@@ -941,6 +953,7 @@ class Boundary:
     def forward(self, grads, last):
         """Add the terms' tangents to ``grads`` (numpy (H W, 3)), the parameters' tangents
         set; ``last``: clear them after."""
+        self.trace_keys()
         pairs = self.pairs()
         total = len(pairs["kind"])
         for lo in range(0, max(total, 1), PAIRS_PER_CHUNK):
