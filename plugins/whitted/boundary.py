@@ -106,7 +106,7 @@ VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_S
 CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
 # host bytes of one sample's keys (shape, face, distance, normal, checker cell, color and,
 # per bounce of the chain, shape, face, distance, cell, TIR flag) and per light (lit, blocker)
-BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 16 + 12 + CHAIN_DEPTH * (4 + 4 + 4 + 16 + 1)
+BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 8 + 12 + CHAIN_DEPTH * (4 + 4 + 4 + 8 + 1)
 BYTES_PER_LIGHT = (1 + 8) * (1 + CHAIN_DEPTH)  # lit and blocker, first hit and chain
 STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
 LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
@@ -172,10 +172,24 @@ def spot_cosine(light, wi):
     return dr.dot(dr.normalize(light.direction), -wi)
 
 
-def crossed(cell_l, cell_r):
-    """How many checker lines (u and v) lie between two samples' cells (int8)."""
-    return (cell_l[..., 0] != cell_r[..., 0]).view(np.int8) \
-        + (cell_l[..., 1] != cell_r[..., 1]).view(np.int8)
+def crossed(cells, left, right):
+    """How many checker lines (u and v) lie between the cells of the lattice's views ``left``
+    and ``right`` (numpy index expressions) of ``cells`` (planes of u and v cells, (2, ...)):
+    an int8 array."""
+    return (cells[0][left] != cells[0][right]).view(np.int8) \
+        + (cells[1][left] != cells[1][right]).view(np.int8)
+
+
+def cells_at(cells, points):
+    """The (u, v) cells at lattice ``points`` ((y, x), numpy) of ``cells`` ((2, H k, W k)
+    planes): (P, 2)."""
+    return np.stack([cells[0][points], cells[1][points]], -1)
+
+
+def nonzero(mask):
+    """(y, x) of the True entries of a 2-D mask, row-major (np.nonzero's, faster: one pass
+    for flat positions, then their rows and columns)."""
+    return np.divmod(np.flatnonzero(mask), mask.shape[1])
 
 
 def lattice_side(spp):
@@ -211,6 +225,12 @@ def lanes_of(stack, i, count):
     return dr.gather(mi.Float, stack, lane, mode=dr.ReduceMode.Direct)
 
 
+def _planes(vector):
+    """A Dr.Jit vector of whole numbers as floats (evaluated) as numpy int32 (components,
+    lanes)."""
+    return np.stack([c.numpy() for c in vector]).astype(np.int32)
+
+
 def _host(vector):
     """A Dr.Jit vector (evaluated) as a numpy (lanes, components) array."""
     return np.stack([c.numpy() for c in vector], -1)
@@ -240,7 +260,9 @@ class Boundary:
             self.terms = tracer.scene_terms(scene)  # detached: the keys, the one-sided colors
         self.lights = self.terms.direct
         self.kind_of = self.terms.geometry.kind.numpy()  # HitTable kind bits by shape id
-        self.kinds = sorted(moving_kinds(tracer, scene))  # the kinds of pairs formed
+        # the kinds of pairs formed, as a table by kind + 1 (-1: no pair)
+        self.formed = np.zeros(KINDS + 1, bool)
+        self.formed[np.array(sorted(moving_kinds(tracer, scene)), int) + 1] = True
         per_sample = BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights)
         need = width * height * spp * per_sample
         # the keys are traced in blocks of at most this many samples (their Dr.Jit arrays
@@ -256,7 +278,8 @@ class Boundary:
         self.prim = np.zeros(size, np.uint32)
         self.t = np.full(size, np.inf, np.float32)
         self.normal = np.zeros(size + (3,), np.float32)
-        self.cell = np.zeros(size + (2,), np.int64)  # checker (floor(u/s), floor(v/s)); 0: none
+        # checker cells (floor(u/s), floor(v/s); 0: none) as two planes, u's and v's
+        self.cell = np.zeros((2,) + size, np.int32)
         self.lit = np.zeros((len(self.lights),) + size, bool)
         self.occluder = np.full((len(self.lights),) + size + (2,), NO_HIT, np.uint32)
         self.color = np.zeros(size + (3,), np.float32)
@@ -266,7 +289,7 @@ class Boundary:
         self.chain_shape = np.full(depth, STOP, np.uint32)
         self.chain_prim = np.zeros(depth, np.uint32)
         self.chain_t = np.full(depth, np.inf, np.float32)
-        self.chain_cell = np.zeros(depth + (2,), np.int64)
+        self.chain_cell = np.zeros((CHAIN_DEPTH, 2) + size, np.int32)
         self.chain_tir = np.zeros(depth, bool)
         # per bounce and light (index d * lights + j): lit, and what blocks it
         lit = (CHAIN_DEPTH * len(self.lights),) + size
@@ -305,12 +328,14 @@ class Boundary:
                                               first, rows))
             for name, values in keys.items():
                 target = getattr(self, name)
-                if name in ("lit", "occluder") or name.startswith("chain_"):
-                    for j, v in enumerate(values):  # (per light, bounce, or bounce and light)
-                        target[j][first:first + rows] = v.reshape((rows, columns) + v.shape[1:])
-                else:
-                    target[first:first + rows] = values.reshape((rows, columns)
-                                                                + values.shape[1:])
+                listed = name in ("lit", "occluder") or name.startswith("chain_")
+                for j, v in enumerate(values) if listed else [(None, values)]:
+                    # (per light, bounce, or bounce and light)
+                    into = target if j is None else target[j]
+                    if name.endswith("cell"):  # (planes: (2, lanes))
+                        into[:, first:first + rows] = v.reshape(2, rows, columns)
+                    else:
+                        into[first:first + rows] = v.reshape((rows, columns) + v.shape[1:])
 
     def put_range(self, target, first, values):
         """Write ``values`` (one per lane of the pixels first, first + 1, ...: spp lanes each,
@@ -349,7 +374,7 @@ class Boundary:
         dr.eval(keys_k, alive)
         out = {"shape": first["shape"].numpy(), "prim": first["prim"].numpy(),
                "t": first["t"].numpy(), "normal": _host(first["normal"]),
-               "cell": _host(first["cell"]).astype(np.int64),
+               "cell": _planes(first["cell"]),
                "lit": [v.numpy() for v in first["lit"]],
                "occluder": [_host(v) for v in first["occluder"]]}
         for _ in range(CHAIN_DEPTH):
@@ -367,7 +392,7 @@ class Boundary:
             chain["chain_shape"].append(shape.numpy())
             chain["chain_prim"].append(keys_k["prim"].numpy())
             chain["chain_t"].append(keys_k["t"].numpy())
-            chain["chain_cell"].append(_host(keys_k["cell"]).astype(np.int64))
+            chain["chain_cell"].append(_planes(keys_k["cell"]))
             chain["chain_tir"].append(at_tir.numpy())
             chain["chain_lit"] += [v.numpy() for v in keys_k["lit"]]
             chain["chain_occluder"] += [_host(v) for v in keys_k["occluder"]]
@@ -470,7 +495,7 @@ class Boundary:
                 edge = same & (self.lit[j][left] != self.lit[j][right])
                 edges += edge
                 kind[edge], light[edge] = SHADOW, j
-            lines = crossed(self.cell[left], self.cell[right])  # u and v lines crossed
+            lines = crossed(self.cell, left, right)  # u and v lines crossed
             checker = same & (lines > 0)
             edges += lines * checker
             kind[checker] = CHECKER
@@ -487,7 +512,7 @@ class Boundary:
                 cs_l, cs_r = self.chain_shape[d][left], self.chain_shape[d][right]
                 tir = self.chain_tir[d][left] != self.chain_tir[d][right]
                 shape_differs = cs_l != cs_r
-                lines = crossed(self.chain_cell[d][left], self.chain_cell[d][right])
+                lines = crossed(self.chain_cell[d], left, right)
                 shadows = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
                 for j in range(len(self.lights)):
                     lit = self.chain_lit[d * len(self.lights) + j]
@@ -507,8 +532,8 @@ class Boundary:
                 kind[switch] = CHAIN_TIR
                 depth[ok | switch] = d
                 pending &= ~here
-            keep = np.isin(kind, self.kinds)  # (-1: none, or left out)
-            ly, lx = np.nonzero(keep)  # (row-major: the order of the lattice)
+            keep = self.formed[kind + 1]  # (-1: none, or left out)
+            ly, lx = nonzero(keep)  # (row-major: the order of the lattice)
             ry, rx = ly + (axis == 0), lx + (axis == 1)
             # the neighbours of L and R across the axis, either side (one side at the border):
             # they give the edge's normal at the crossing (centred differences)
@@ -538,7 +563,7 @@ class Boundary:
             return differs
         kind = kind_of[np.minimum(sl[faces], len(kind_of) - 1)]
         flat = (kind & MESH != 0) & (kind & SMOOTH == 0)
-        where = tuple(i[flat] for i in np.nonzero(faces))  # (only these: the normals' test
+        where = tuple(i[flat] for i in nonzero(faces))  # (only these: the normals' test
         # over the whole lattice is the costly part)
         nl, nr = self.normal[left][where], self.normal[right][where]
         bent = np.linalg.norm(nl - nr, axis=-1) > COPLANAR
@@ -738,7 +763,8 @@ class Boundary:
             choice = self.shadow_crossing(table, ray, si, light, blocker, kind == SHADOW, choice)
         # checker lines
         if (kind == CHECKER).any():
-            choice = self.checker_crossing(terms, si, self.cell[L], self.cell[R],
+            choice = self.checker_crossing(terms, si, cells_at(self.cell, L),
+                                           cells_at(self.cell, R),
                                            kind == CHECKER, choice)
         return choice
 
@@ -827,7 +853,8 @@ class Boundary:
         g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_VISIBILITY, lanes)), vis, g)
         g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_TIR, lanes)), margin, g)
         if (kind == CHAIN_CHECKER).any():
-            cl, cr = self.chain_cell[d, L[0], L[1]], self.chain_cell[d, R[0], R[1]]
+            cl, cr = (np.stack([self.chain_cell[d, c, p[0], p[1]] for c in (0, 1)], -1)
+                      for p in (L, R))
             g = self.checker_crossing(terms, final_si, cl, cr, kind == CHAIN_CHECKER, g)
         if (kind == CHAIN_SHADOW).any():
             index = d * len(self.lights) + light
