@@ -643,7 +643,8 @@ class Boundary:
         table = terms.geometry
         ray = self.film_rays(*(np.concatenate([point[i] for point in sets]) for i in range(2)))
         dr.eval(ray)
-        si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
+        # (coherent: the stack's rays come in the lattice's order, neighbours together)
+        si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=True))
         g = self.crossing(table, terms, ray, si, L, R, kind, light)
         if (depth >= 0).any():
             g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light)
@@ -925,22 +926,25 @@ class Boundary:
     def crossed_edge(self, table, ray, shape, prim):
         """Per pair (numpy): the edge of the face (shape, prim) whose function changes sign
         between the rays of L and R (of the stacked rays ``ray``; -1: none, or not a face)."""
-        lanes = dr.width(ray.d)
         if not table.has_meshes:
             return np.full(len(shape), -1)
-        shape_s, prim_s = stacked(shape, lanes), stacked(prim, lanes)
-        ids = jit_array(mi.UInt32, np.where(shape_s == NO_HIT, 0, shape_s).astype(np.uint32))
-        valid = jit_array(mi.Bool, shape_s != NO_HIT) & (ids < table.size)
-        kind = dr.gather(mi.UInt32, table.kind, ids, valid)
-        row = dr.gather(mi.UInt32, table.first, ids, valid)
-        mesh = valid & ((kind & MESH) != 0)
+        count = len(shape)
         with dr.suspend_grad():
-            edges = self.edge_functions(table, ray, dr.normalize(ray.d), row, prim_s, mesh)
+            lanes = dr.arange(mi.UInt32, 2 * count)  # L's and R's
+            ray = mi.Ray3f(dr.gather(mi.Point3f, ray.o, lanes),
+                           dr.gather(mi.Vector3f, ray.d, lanes))
+            shape2, prim2 = np.tile(shape, 2), np.tile(prim, 2)
+            ids = jit_array(mi.UInt32, np.where(shape2 == NO_HIT, 0, shape2).astype(np.uint32))
+            valid = jit_array(mi.Bool, shape2 != NO_HIT) & (ids < table.size)
+            kind = dr.gather(mi.UInt32, table.kind, ids, valid)
+            row = dr.gather(mi.UInt32, table.first, ids, valid)
+            mesh = valid & ((kind & MESH) != 0)
+            edges = self.edge_functions(table, ray, dr.normalize(ray.d), row, prim2, mesh)
             dr.eval(edges, mesh)
-            sides = [at_l_and_r(e, len(shape)) for e in edges]
+            sides = [at_l_and_r(e, count) for e in edges]
         flips = np.stack([np.sign(el) != np.sign(er) for el, er in sides], -1)
         edge = np.where(flips.any(-1), np.argmax(flips, -1), -1)
-        return np.where(mesh.numpy()[:len(shape)], edge, -1)
+        return np.where(mesh.numpy()[:count], edge, -1)
 
     def depth(self, table, ray, shape, prim):
         """The distance along each ray to the primitive (shape, prim)'s plane or sphere."""
