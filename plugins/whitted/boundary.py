@@ -709,25 +709,19 @@ class Boundary:
 
     def jump(self, L, R, axis, w, kind):
         """f_L - f_R across each pair's crossing: the colors of two rays traced just either
-        side of it (LIMIT lattice units, within the pair), where they see what L and R see
-        (else the colors of L and R themselves)."""
-        ly, lx = L
-        c = np.where(axis == 1, lx, ly) + 0.5 + w
+        side of it (LIMIT lattice units, within the pair; both sides stacked, one trace),
+        where they see what L and R see (else the colors of L and R themselves)."""
+        count = len(kind)
         step = np.minimum(LIMIT, 0.5 * np.minimum(w, 1.0 - w))
-        colors, shapes = [], []
+        sides = [self.along_axis(L, axis, w + offset) for offset in (-step, step)]
         with dr.suspend_grad():
-            for offset in (-step, step):
-                at = c + offset
-                y = np.where(axis == 1, ly + 0.5, at)
-                x = np.where(axis == 1, at, lx + 0.5)
-                ray = self.film_rays(y - 0.5, x - 0.5)
-                color = self.tracer.trace(self.scene, ray, self.terms).color
-                si = self.scene.ray_intersect_preliminary(ray)
-                shape = dr.select(si.is_valid(), dr.reinterpret_array(mi.UInt32, si.shape),
-                                  NO_HIT)
-                dr.eval(color, shape)
-                colors.append(np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1))
-                shapes.append(shape.numpy())
+            ray = self.film_rays(*(np.concatenate([side[i] for side in sides]) for i in range(2)))
+            color = self.tracer.trace(self.scene, ray, self.terms).color
+            si = self.scene.ray_intersect_preliminary(ray)
+            shape = dr.select(si.is_valid(), dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT)
+            dr.eval(color, shape)
+            colors = _host(color).reshape(2, count, 3)
+            shapes = shape.numpy().reshape(2, count)
         same = (shapes[0] == self.shape[L]) & (shapes[1] == self.shape[R])
         return np.where(same[:, None], colors[0] - colors[1], self.color[L] - self.color[R])
 
