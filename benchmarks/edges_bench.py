@@ -33,7 +33,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
 
-from support_edges import MIRRORED_SHADOW, SNELL, SPOT, TERMINATOR  # noqa: E402
+from support_edges import GLASS, MIRRORED_SHADOW, SNELL, SPOT, TERMINATOR  # noqa: E402
 
 FLAT = """\
 eye 0 0 5
@@ -66,19 +66,6 @@ plane
 reset
 material 0.8 0.3 0.2 0.3 0.7 0.3 10 0 0 1
 translate -0.9 0 0
-sphere
-"""
-GLASS = """\
-eye 0.05 0.03 4
-fov 30
-light 1 1 1 ambient
-material 0.9 0.6 0.3 1 0 0 1 0 0 1
-rotateX 90
-translate 0 0 -3
-checkerboard 0.5
-plane
-reset
-material 1 1 1 0 0 0 1 0 0.9 1.5
 sphere
 """
 

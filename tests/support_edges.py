@@ -93,6 +93,22 @@ translate 0 -3 0
 plane
 """
 
+# a glass ball in front of a checkered wall: the checker seen through it moves with eta, and
+# its rim compresses the checker (crossings that curve between two samples)
+GLASS = """\
+eye 0.05 0.03 4
+fov 30
+light 1 1 1 ambient
+material 0.9 0.6 0.3 1 0 0 1 0 0 1
+rotateX 90
+translate 0 0 -3
+checkerboard 0.5
+plane
+reset
+material 1 1 1 0 0 0 1 0 0.9 1.5
+sphere
+"""
+
 
 def loaded(mi, text, spp, key=None, value=None, **options):
     import raymitsuba

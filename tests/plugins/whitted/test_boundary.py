@@ -22,7 +22,7 @@ import math
 import numpy as np
 import pytest
 
-from support_edges import (H, MIRRORED_SHADOW, SNELL, SPOT, TERMINATOR, W,
+from support_edges import (GLASS, H, MIRRORED_SHADOW, SNELL, SPOT, TERMINATOR, W,
                            finite_difference, forward, image, loaded, relative_l2, reverse,
                            weights)
 
@@ -121,6 +121,20 @@ def test_moving_edges_match_finite_differences(mi, text, key, direction, h):
     # reverse mode gives the same weighted sum
     rev = reverse(mi, text, key, w, 16) @ np.asarray(direction)
     assert rev == pytest.approx(np.sum(w * grad), rel=1e-4)
+
+
+def test_a_crossing_that_curves_between_two_samples_is_refined(mi):
+    """eta of a glass ball in front of a checkered wall: near the ball's rim the checker is
+    compressed and u / size - m far from linear between two samples; the crossing refined
+    by g at two points beside it (boundary.py's module docstring). Measured at k = 4 against
+    the 64^2 reference: per-pixel 21.5 %, the weighted sum 2.1 % of the terms' sizes (the
+    reference itself aliases the compressed lines here; the benchmark's finer one reads
+    11 %); without the refinement 63 % and 7.4 %. Asserted: 30 % and 4 %."""
+    reference = finite_difference(mi, GLASS, "mat2.ior", (1.0,), 0.002)
+    w = weights()
+    grad = forward(mi, GLASS, "mat2.ior", (1.0,), 16)
+    assert abs(np.sum(w * (grad - reference))) < 0.04 * np.sum(np.abs(w * reference))
+    assert relative_l2(grad, reference) < 0.30
 
 
 def test_an_ellipsoid_of_the_sphere_set_moves_its_silhouette_with_the_camera(mi):
