@@ -27,7 +27,11 @@ The keys (:class:`~raymitsuba.format.commands.ParamKey`: ``camera.eye``, ``spher
   O(h^2) for rotation angles, h = 1e-2 degree; others h = 1e-2 max(1, |value|)), handed to the integrator as a
   ``geometry_ad.GeometryAD`` (which says how they reach the rays and the hits). Rebuilt at
   every update (a rotation's Jacobian, or a translation's under a rotation, depends on the
-  other keys' values).
+  other keys' values), but for the keys on which the geometry depends linearly (LINEAR:
+  offsets, vertices, MIT 6.837 centres and radii), whose Jacobian depends on the rotations'
+  and scales' values alone: theirs is kept while those stay (each costs two translations of
+  the whole scene per component: a fit of a translate on a large scene would pay them at
+  every step).
 
 Not a parameter: ``checkerboard{n}.size`` (it moves checker lines only: an image whose
 derivative is all in moving edges). A key that would move a fixed shape (see above) is in
@@ -49,6 +53,10 @@ from raymitsuba.format.writeback import ParameterError, rewrite_scene, source_li
 from raymitsuba.translate import camera_geometry, shape_geometry
 
 CAMERA_FIELDS = ("eye", "lookat", "up", "fov")
+# the keys' fields on which the geometry depends linearly, with the rotations' and scales'
+# values fixed (see the module docstring)
+LINEAR = ("offset", "v0", "v1", "v2", "center", "radius", "position")
+TURNING = ("angle", "factors")  # the fields their Jacobians depend on: rotations and scales
 ANGLE_STEP = 1e-2  # degrees: the central difference of a rotation angle's Jacobian
 STEP = 1e-2  # the central difference of the other keys, times max(1, |value|): exact for
 # the affine ones whatever the step (float32 mesh positions: ~1e-5 relative)
@@ -78,6 +86,8 @@ class GeometryKeys:
             written = self.written[key]
             self.values[key] = mi.Point3f(*written) if len(written) == 3 else mi.Float(written[0])
         self._mitsuba = None  # the shapes' and the sensor's own parameters (mi.traverse)
+        # key -> (the TURNING keys' values, its Jacobian at them), of the LINEAR keys
+        self._linear_jacobians = {}
 
     @property
     def mitsuba(self):
@@ -236,12 +246,24 @@ class GeometryKeys:
 
     def _jacobian(self, key, changed):
         """{shape id: (kind, d geometry / d key (n, m) float64)} of the shapes the key moves,
-        at the current values ``changed`` (central differences, see the module docstring).
+        at the current values ``changed`` (central differences, see the module docstring; a
+        LINEAR key's kept while the rotations' and scales' values stay).
 
         A component whose change alone would change how a shape is represented (one factor of
         a scale over an analytic sphere: the sphere would become an ellipsoid) is
         differentiated along the uniform direction (1, ..., 1) instead, each component taking
         1/m of it: the representation never changes, so a sphere only scales uniformly."""
+        if ParamKey.parse(key).field in LINEAR:  # (see the module docstring)
+            others = tuple(sorted((k, _as_tuple(v)) for k, v in changed.items()
+                                  if ParamKey.parse(k).field in TURNING))
+            kept = self._linear_jacobians.get(key)
+            if kept is None or kept[0] != others:
+                kept = (others, self._computed_jacobian(key, changed))
+                self._linear_jacobians[key] = kept
+            return kept[1]
+        return self._computed_jacobian(key, changed)
+
+    def _computed_jacobian(self, key, changed):
         value = _as_tuple(changed.get(key, _as_value(self.written[key])))
         h = ANGLE_STEP if ParamKey.parse(key).field == "angle" else \
             STEP * max(1.0, max(abs(v) for v in value))

@@ -107,3 +107,51 @@ def test_keys_that_cannot_move_are_refused(mi):
     sphere.params["scale1.factors"] = mi.Point3f(2, 3, 2)  # would make it an ellipsoid
     with pytest.raises(ParameterError, match="shapes stand for|represented"):
         sphere.params.update()
+
+
+def test_a_linear_keys_jacobian_is_kept_while_the_rotations_stay(mi, monkeypatch):
+    """translate1.offset's Jacobian depends on rotateY1.angle's value, not on its own: an
+    update that moves the offset translates the scene once (the move), one that turns the
+    rotation too computes the Jacobian again (six more translations: two per component).
+    Either way the derivative is that of the scene loaded with those values written in."""
+    import drjit as dr
+    import raymitsuba
+
+    from raymitsuba import parameters
+
+    translations = []
+    real = parameters.shape_geometry
+
+    def counted(*args, **kwargs):  # (the real translation, counted)
+        translations.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(parameters, "shape_geometry", counted)
+    scene = loaded(mi, FILLED, 1)
+    params = scene.params
+    direction = mi.Point3f(0.3, -0.5, 0.2)
+
+    def move(offset, angle):
+        translations.clear()
+        params["translate1.offset"] = mi.Point3f(*offset)
+        params["rotateY1.angle"] = mi.Float(angle)
+        dr.enable_grad(params["translate1.offset"])
+        params.update()
+        dr.set_grad(params["translate1.offset"], direction)
+        result = raymitsuba.render(scene)
+        dr.forward_to(result)
+        return len(translations), dr.grad(result).numpy().astype(np.float64)
+
+    def written(offset, angle):  # the same values written in the file
+        text = FILLED.replace("translate 0.1 0 0", "translate %r %r %r" % offset) \
+            .replace("rotateY 20", "rotateY %r" % angle)
+        return forward(mi, text, "translate1.offset", (0.3, -0.5, 0.2), 1)
+
+    move((0.12, 0.0, 0.0), 21.0)  # (the first Jacobian; both keys checked once)
+    count, kept = move((0.15, 0.01, 0.0), 21.0)
+    assert count == 1
+    assert np.allclose(kept, written((0.15, 0.01, 0.0), 21.0), rtol=1e-4, atol=1e-5)
+    count, again = move((0.15, 0.01, 0.0), 25.0)
+    assert count == 7
+    assert np.allclose(again, written((0.15, 0.01, 0.0), 25.0), rtol=1e-4, atol=1e-5)
+    assert not np.allclose(again, kept, rtol=1e-2)
