@@ -191,12 +191,12 @@ def figure(mi, path, width=64, height=48):
     options = dict(width=width, height=height)
     reference = finite_difference(mi, h=0.05, **case, **options)
     full = forward(mi, spp=16, **case, **options)
-    wanted = boundary.wanted
-    boundary.wanted = lambda tracer, scene: False
+    moving_kinds = boundary.moving_kinds
+    boundary.moving_kinds = lambda tracer, scene: set()
     try:
         interior = forward(mi, spp=16, **case, **options)
     finally:
-        boundary.wanted = wanted
+        boundary.moving_kinds = moving_kinds
     panels = [("finite differences, 64 x 64 lattice", reference),
               ("AD, k = 4, with boundary terms", full), ("AD, k = 4, interior only", interior)]
     limit = np.percentile(np.abs(reference.sum(-1)), 99)

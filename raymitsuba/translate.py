@@ -166,6 +166,12 @@ def emitter(light, mi):
     return out
 
 
+def untextured(obj: SceneObject) -> bool:
+    """Whether ``obj``'s surface is its material's alone (no texture, no checkerboard): its
+    BSDF is the material's own, and its uv are not read."""
+    return obj.texture is None and obj.checker is None
+
+
 class Surfaces:
     """One BSDF reference per distinct (material, texture, checker) of the objects."""
 
@@ -177,7 +183,7 @@ class Surfaces:
 
     def id(self, obj: SceneObject) -> str:
         """The id of the BSDF of ``obj``'s surface (made on first use)."""
-        if obj.texture is None and obj.checker is None:
+        if untextured(obj):
             return f"mat{obj.material}"
         key = (obj.material, obj.texture.path if obj.texture else None, obj.checker)
         if key not in self.ids:
@@ -345,9 +351,8 @@ def set_members(spheres, tessellated, model, options):
     member = joins([obj for obj, _, _ in spheres], m)
     ellipsoids = []  # per tessellated entry: which of its objects join (None: not spheres)
     for surface_id, kind, to_world, objs in tessellated:
-        textured = surface_id != f"mat{objs[0].material}"
-        ellipsoids.append(joins(objs, to_world) if kind is ObjectKind.SPHERE and not textured
-                          else None)
+        ellipsoids.append(joins(objs, to_world) if kind is ObjectKind.SPHERE
+                          and untextured(objs[0]) else None)
     count = np.count_nonzero(member) + sum(np.count_nonzero(e) for e in ellipsoids
                                            if e is not None)
     if count < options.sphere_set:

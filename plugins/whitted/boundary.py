@@ -95,7 +95,7 @@ from .arrays import jit_array
 from .camera import lattice_rays
 from .chunks import MAX_CHUNK_LANES
 from .guards import BudgetError
-from .hits import MESH, SMOOTH, SPHERE
+from .hits import MESH, SMOOTH, SPHERE, traversed_values
 from .tree import reflect, refract
 
 PAIRS_PER_CHUNK = 1 << 16
@@ -113,8 +113,6 @@ LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are 
 # the crossing's refinement: g at two points either side of it, this share of its distance
 # to the nearer sample away, at least REFINE_MIN lattice units (float32's g resolves it)
 REFINE, REFINE_MIN = 0.25, 0.005
-# the values of a light that may be keys (those it has: ``plugins/light.py``)
-LIGHT_VALUES = ("color", "position", "direction", "shape_coefficient")
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
 
 
@@ -125,10 +123,9 @@ def moving_kinds(tracer, scene):
     kinds); a light's position or direction, its shadow edges, the terminator and a spot's
     cone (the shadow kinds). The others' surrogates would have no derivative: their pairs
     are not formed."""
-    kinds = set()
-    if tracer.geometry_ad is not None and (tracer.geometry_ad.attached() or (
-            tracer.geometry_ad.camera is not None and tracer.geometry_ad.camera.attached())):
+    if tracer.geometry_ad is not None and tracer.geometry_ad.moves():
         return set(range(KINDS))
+    kinds = set()
     if tracer.surfaces is not None and any(  # eta moves what is seen through glass
             dr.grad_enabled(material.ior) for material in tracer.surfaces.layout.materials):
         kinds |= {CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW}
@@ -138,11 +135,6 @@ def moving_kinds(tracer, scene):
             if value is not None and dr.grad_enabled(value):
                 kinds |= {SHADOW, CHAIN_SHADOW}
     return kinds
-
-
-def wanted(tracer, scene):
-    """Whether a derivative pass needs the boundary terms (see moving_kinds)."""
-    return bool(moving_kinds(tracer, scene))
 
 
 def hurwitz_zeta_half(q):
@@ -231,6 +223,15 @@ def _planes(vector):
     return np.stack([c.numpy() for c in vector]).astype(np.int32)
 
 
+def _host_keys(keys):
+    """The keys of :meth:`Boundary.hit_keys` (evaluated) as numpy arrays: shape, prim, t,
+    cell (planes), and per light lit and occluder (lists)."""
+    return {"shape": keys["shape"].numpy(), "prim": keys["prim"].numpy(),
+            "t": keys["t"].numpy(), "cell": _planes(keys["cell"]),
+            "lit": [v.numpy() for v in keys["lit"]],
+            "occluder": [_host(v) for v in keys["occluder"]]}
+
+
 def _host(vector):
     """A Dr.Jit vector (evaluated) as a numpy (lanes, components) array."""
     return np.stack([c.numpy() for c in vector], -1)
@@ -251,9 +252,10 @@ def _merge(mask, si, other):
 
 class Boundary:
     """The boundary terms of one adjoint pass over a ``width`` x ``height`` image sampled on
-    the k x k lattice (``spp`` = k^2) of ``sensor`` (see the module docstring)."""
+    the k x k lattice (``spp`` = k^2) of ``sensor`` (see the module docstring), forming the
+    pairs of ``kinds`` (:func:`moving_kinds`)."""
 
-    def __init__(self, tracer, scene, sensor, width, height, spp, budget):
+    def __init__(self, tracer, scene, sensor, width, height, spp, budget, kinds):
         self.tracer, self.scene, self.sensor = tracer, scene, sensor
         self.width, self.height, self.k = width, height, lattice_side(spp)
         with dr.suspend_grad():
@@ -262,7 +264,7 @@ class Boundary:
         self.kind_of = self.terms.geometry.kind.numpy()  # HitTable kind bits by shape id
         # the kinds of pairs formed, as a table by kind + 1 (-1: no pair)
         self.formed = np.zeros(KINDS + 1, bool)
-        self.formed[np.array(sorted(moving_kinds(tracer, scene)), int) + 1] = True
+        self.formed[np.array(sorted(kinds), int) + 1] = True
         per_sample = BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights)
         need = width * height * spp * per_sample
         # the keys are traced in blocks of at most this many samples (their Dr.Jit arrays
@@ -297,23 +299,11 @@ class Boundary:
         self.chain_occluder = np.full(lit + (2,), NO_HIT, np.uint32)
 
     # -- the keys --------------------------------------------------------------------------------
-    def lattice_points(self, job, start, count):
-        """(Y, X) of the lanes of the job's pixels start .. start + count - 1."""
-        k, spp = self.k, self.k * self.k
-        pixel = job.pixel_index(start, count).numpy().astype(np.int64)
-        lane = np.arange(count * spp)
-        p, s = pixel[lane // spp], lane % spp
-        return (p // self.width) * k + s // k, (p % self.width) * k + s % k
-
     def collect(self, job, start, count, color):
         """Record the colors of a chunk's samples (``color``: one lane per camera ray of the
-        job's pixels start .. start + count - 1)."""
-        color = dr.detach(color)
-        values = np.stack([color.x.numpy(), color.y.numpy(), color.z.numpy()], -1)
-        if job.pixels is None:  # a range of pixels: written by rows of the lattice
-            self.put_range(self.color, job.first + start, values)
-        else:
-            self.color[self.lattice_points(job, start, count)] = values
+        job's pixels start .. start + count - 1; the job: a range of pixels, as the adjoint
+        pass's is without anti-aliasing)."""
+        self.put_range(self.color, job.first + start, _host(dr.detach(color)))
 
     def trace_keys(self):
         """The keys of every lattice sample (see :meth:`keys`), traced in blocks of lattice
@@ -365,18 +355,13 @@ class Boundary:
         scene, table = self.scene, self.terms.geometry
         si = self.tracer.intersect(scene, table, rays, coherent=True)
         hit = si.is_valid()
-        first = self.hit_keys(si, rays, hit)
-        first["normal"] = si.n
-        chain = {name: [] for name in ("chain_shape", "chain_prim", "chain_t", "chain_cell",
-                                       "chain_tir", "chain_lit", "chain_occluder")}
-        ray_k, si_k, keys_k = rays, si, first
+        keys_k = self.hit_keys(si, rays, hit)
+        keys_k["normal"] = si.n
         alive = hit & keys_k["go"]  # (with a next ray of the chain)
         dr.eval(keys_k, alive)
-        out = {"shape": first["shape"].numpy(), "prim": first["prim"].numpy(),
-               "t": first["t"].numpy(), "normal": _host(first["normal"]),
-               "cell": _planes(first["cell"]),
-               "lit": [v.numpy() for v in first["lit"]],
-               "occluder": [_host(v) for v in first["occluder"]]}
+        out = _host_keys(keys_k) | {"normal": _host(keys_k["normal"])}
+        out |= {"chain_" + name: [] for name in ("shape", "prim", "t", "cell", "tir", "lit",
+                                                 "occluder")}
         for _ in range(CHAIN_DEPTH):
             if not dr.any(alive):  # (the chain's keys past its end: as the lattice starts)
                 break
@@ -384,19 +369,14 @@ class Boundary:
             si_k = self.tracer.intersect(scene, table, ray_k, coherent=False)
             found = alive & si_k.is_valid()
             keys_k = self.hit_keys(si_k, ray_k, found)
-            shape = dr.select(found, keys_k["shape"],
-                              dr.select(alive, mi.UInt32(NO_HIT), mi.UInt32(STOP)))
-            at_tir = alive & tir
+            keys_k["shape"] = dr.select(found, keys_k["shape"],
+                                        dr.select(alive, mi.UInt32(NO_HIT), mi.UInt32(STOP)))
+            at_tir = alive & tir  # (total internal reflection at the bounce that led here)
             alive = found & keys_k["go"]
-            dr.eval(keys_k, shape, at_tir, alive)
-            chain["chain_shape"].append(shape.numpy())
-            chain["chain_prim"].append(keys_k["prim"].numpy())
-            chain["chain_t"].append(keys_k["t"].numpy())
-            chain["chain_cell"].append(_planes(keys_k["cell"]))
-            chain["chain_tir"].append(at_tir.numpy())
-            chain["chain_lit"] += [v.numpy() for v in keys_k["lit"]]
-            chain["chain_occluder"] += [_host(v) for v in keys_k["occluder"]]
-        out.update(chain)
+            dr.eval(keys_k, at_tir, alive)
+            for name, value in _host_keys(keys_k).items():  # (lit, occluder: one per light)
+                out["chain_" + name] += value if isinstance(value, list) else [value]
+            out["chain_tir"].append(at_tir.numpy())
         return out
 
     def hit_keys(self, si, rays, hit):
@@ -675,7 +655,7 @@ class Boundary:
         (measured on benchmarks/edges_bench.py's spheres: per-pixel error at k = 4 from
         18-19 % to 4-5 %; on its whole scene moved by the eye, 14.1 % to 14.0 %)."""
         ad = self.tracer.geometry_ad
-        if ad is None or not (ad.attached() or (ad.camera is not None and ad.camera.attached())):
+        if ad is None or not ad.moves():
             return None
         near_l = self.t[L] <= self.t[R]
         inside = tuple(np.where(near_l, a, b) for a, b in zip(L, R))
@@ -701,8 +681,8 @@ class Boundary:
         # the tracer attaches the camera's keys to the rays)
         moving = copy.copy(self.terms)
         moving.geometry = table
-        with dr.suspend_grad(*(getattr(light, name) for light in self.lights
-                               for name in LIGHT_VALUES if hasattr(light, name))):
+        with dr.suspend_grad(*(value for light in self.lights
+                               for value in traversed_values(light))):
             d = self.tracer.trace(self.scene, self.film_rays(*inside, camera=False),
                                   moving).color
         return (d - dr.detach(d)) * jit_array(mi.Float, factor.astype(np.float32))
@@ -990,6 +970,6 @@ class Boundary:
                 final = last and hi == total
                 dr.forward_to(surrogate, flags=dr.ADFlag.AllowNoGrad | (
                     dr.ADFlag.Default if final else dr.ADFlag.ClearEdges | dr.ADFlag.ClearInterior))
-                tangent = np.stack([dr.grad(surrogate)[c].numpy() for c in range(3)], -1)
+                tangent = _host(dr.grad(surrogate))
             for j in range(3):
                 np.add.at(grads, pixel[:, j], tangent * fraction[:, j:j + 1])

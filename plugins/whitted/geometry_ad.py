@@ -153,8 +153,12 @@ class GeometryAD:
         self.meshes = meshes or {}
         self.camera = camera
 
+    def moves(self):
+        """Whether some key of the geometry or of the camera has its gradient enabled."""
+        return self.attached() or (self.camera is not None and self.camera.attached())
+
     def attached(self):
-        """Whether some key has its gradient enabled."""
+        """Whether some key of the geometry has its gradient enabled."""
         keys = [v for entries in (*self.spheres.values(), *self.meshes.values())
                 for v, *_ in entries]
         return any(dr.grad_enabled(v) for v in keys)

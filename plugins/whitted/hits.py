@@ -79,6 +79,13 @@ def shape_property(shape, name):
     return value if cpptype is None else mi.get_property(value, cpptype, shape)
 
 
+def traversed_values(obj):
+    """The values ``obj`` (a plugin) puts in ``mi.traverse``, its own (see _Properties)."""
+    properties = _Properties()
+    obj.traverse(properties)
+    return [value for value, _ in properties.values.values()]
+
+
 def sphere_rows(to_world, uv=True):
     """What the table keeps of a sphere of to-world transform ``to_world``, host values of
     its one-lane entries read one by one (no kernel each; only the entries used): (the

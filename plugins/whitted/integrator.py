@@ -245,7 +245,8 @@ class Whitted(mi.CppADIntegrator):
         no parameter moves an edge. They need the uniform k x k lattice of spp = k^2: with
         anti-aliasing (whose samples differ from pixel to pixel) or another sample count, a
         derivative with respect to the geometry or the camera is refused."""
-        if not boundary.wanted(self.tracer, scene):
+        kinds = boundary.moving_kinds(self.tracer, scene)
+        if not kinds:
             return None
         if self.aa > 0 or boundary.lattice_side(spp) is None:
             if self.tracer.geometry_ad is None:
@@ -256,7 +257,7 @@ class Whitted(mi.CppADIntegrator):
                 + (", with --aa" if self.aa > 0 else "") + "): their edges' terms are "
                 "computed between neighbouring lattice samples")
         return boundary.Boundary(self.tracer, scene, sensor, width, height, spp,
-                                 self.memory_budget)
+                                 self.memory_budget, kinds)
 
     def _adjoint_chunker(self, scene, sensor):
         return Chunker(self.tracer, scene, sensor, self.memory_budget,
