@@ -109,6 +109,10 @@ CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
 BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 8 + 12 + CHAIN_DEPTH * (4 + 4 + 4 + 8 + 1)
 BYTES_PER_LIGHT = (1 + 8) * (1 + CHAIN_DEPTH)  # lit and blocker, first hit and chain
 STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
+# the chain's keys of a sample whose chain ended before the bounce (those of the first hit
+# are set for every sample)
+DEFAULT = {"chain_shape": STOP, "chain_prim": 0, "chain_t": np.inf, "chain_cell": 0,
+           "chain_tir": False, "chain_lit": False, "chain_occluder": NO_HIT}
 LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
 # the crossing's refinement: g at two points either side of it, this share of its distance
 # to the nearer sample away, at least REFINE_MIN lattice units (float32's g resolves it)
@@ -182,6 +186,20 @@ def nonzero(mask):
     """(y, x) of the True entries of a 2-D mask, row-major (np.nonzero's, faster: one pass
     for flat positions, then their rows and columns)."""
     return np.divmod(np.flatnonzero(mask), mask.shape[1])
+
+
+def picked(arrays, index, points):
+    """arrays[index[i]][y[i], x[i]] for each i (``arrays``: a list of lattice arrays, (H k,
+    W k, ...); ``index``, ``points`` = (y, x): numpy, per pair)."""
+    y, x = points
+    if len(arrays) == 1:
+        return arrays[0][y, x]
+    out = np.empty((len(index),) + arrays[0].shape[2:], arrays[0].dtype)
+    for j, array in enumerate(arrays):
+        at = index == j
+        if at.any():
+            out[at] = array[y[at], x[at]]
+    return out
 
 
 def lattice_side(spp):
@@ -275,40 +293,31 @@ class Boundary:
                 f"the boundary terms' keys of {width} x {height} x {spp} samples take "
                 f"{need / GIB:.2g} GB, more than the memory budget ({budget / GIB:.2g} GB): "
                 "use a smaller image or spp, or a larger --memory-budget")
-        size = (height * self.k, width * self.k)
-        self.shape = np.full(size, NO_HIT, np.uint32)
-        self.prim = np.zeros(size, np.uint32)
-        self.t = np.full(size, np.inf, np.float32)
-        self.normal = np.zeros(size + (3,), np.float32)
-        # checker cells (floor(u/s), floor(v/s); 0: none) as two planes, u's and v's
-        self.cell = np.zeros((2,) + size, np.int32)
-        self.lit = np.zeros((len(self.lights),) + size, bool)
-        self.occluder = np.full((len(self.lights),) + size + (2,), NO_HIT, np.uint32)
-        self.color = np.zeros(size + (3,), np.float32)
-        # the specular chain (see chain_step): per bounce, the shape and face hit, its distance,
-        # the checker cell there and whether the bounce was a total internal reflection
-        depth = (CHAIN_DEPTH,) + size
-        self.chain_shape = np.full(depth, STOP, np.uint32)
-        self.chain_prim = np.zeros(depth, np.uint32)
-        self.chain_t = np.full(depth, np.inf, np.float32)
-        self.chain_cell = np.zeros((CHAIN_DEPTH, 2) + size, np.int32)
-        self.chain_tir = np.zeros(depth, bool)
-        # per bounce and light (index d * lights + j): lit, and what blocks it
-        lit = (CHAIN_DEPTH * len(self.lights),) + size
-        self.chain_lit = np.zeros(lit, bool)
-        self.chain_occluder = np.full(lit + (2,), NO_HIT, np.uint32)
+        # The lattice's keys ((H k, W k) arrays, see trace_keys) and the samples' colors
+        # (collect): set as they are traced. The specular chain's (see chain_step): a list
+        # with an array per bounce traced (none past the last bounce any chain reaches): the
+        # shape and face hit, its distance, the checker cell there and whether the bounce
+        # was a total internal reflection; lit and what blocks it, per bounce and light
+        # (index d * lights + j)
+        self.shape = self.prim = self.t = self.normal = self.cell = self.color = None
+        self.lit, self.occluder = [], []
+        self.chain_shape, self.chain_prim, self.chain_t, self.chain_cell = [], [], [], []
+        self.chain_tir, self.chain_lit, self.chain_occluder = [], [], []
 
     # -- the keys --------------------------------------------------------------------------------
     def collect(self, job, start, count, color):
         """Record the colors of a chunk's samples (``color``: one lane per camera ray of the
         job's pixels start .. start + count - 1; the job: a range of pixels, as the adjoint
         pass's is without anti-aliasing)."""
+        if self.color is None:  # (every pixel's colors come: no default)
+            self.color = np.empty((self.height * self.k, self.width * self.k, 3), np.float32)
         self.put_range(self.color, job.first + start, _host(dr.detach(color)))
 
     def trace_keys(self):
         """The keys of every lattice sample (see :meth:`keys`), traced in blocks of lattice
         rows in the lattice's own order (the camera rays of ``camera.lattice_rays``, those
-        the render traces, bit for bit), written into the lattice's arrays as they come."""
+        the render traces, bit for bit), written into the lattice's arrays as they come (a
+        lattice traced as one block keeps its keys' arrays as they are)."""
         columns, total = self.width * self.k, self.height * self.k
         block = max(self.block_lanes // columns, 1)
         for first in range(0, total, block):
@@ -317,15 +326,32 @@ class Boundary:
                 keys = self.keys(lattice_rays(self.sensor, self.width, self.height, self.k,
                                               first, rows))
             for name, values in keys.items():
-                target = getattr(self, name)
-                listed = name in ("lit", "occluder") or name.startswith("chain_")
-                for j, v in enumerate(values) if listed else [(None, values)]:
-                    # (per light, bounce, or bounce and light)
-                    into = target if j is None else target[j]
-                    if name.endswith("cell"):  # (planes: (2, lanes))
-                        into[:, first:first + rows] = v.reshape(2, rows, columns)
-                    else:
-                        into[first:first + rows] = v.reshape((rows, columns) + v.shape[1:])
+                if isinstance(values, list):  # (per light, bounce, or bounce and light)
+                    into = getattr(self, name)
+                    for j, v in enumerate(values):
+                        into += [None] * (j + 1 - len(into))
+                        into[j] = self.put_rows(into[j], name, first, rows, v)
+                else:
+                    setattr(self, name, self.put_rows(getattr(self, name), name, first, rows,
+                                                      values))
+
+    def put_rows(self, target, name, first, rows, values):
+        """``target`` (a lattice array of key ``name``, or None: not yet made) with the
+        lattice rows first .. first + rows - 1 set to ``values`` (one per lane of those rows,
+        row-major; checker cells as planes, (2, lanes)). Made where None: ``values`` itself
+        if they are every row, else filled with the key's DEFAULT (a bounce that the chains
+        of earlier rows did not reach)."""
+        total, columns = self.height * self.k, self.width * self.k
+        planes = name.endswith("cell")
+        values = values.reshape((2, rows, columns) if planes
+                                else (rows, columns) + values.shape[1:])
+        if rows == total:
+            return values
+        if target is None:
+            shape = values.shape[:int(planes)] + (total,) + values.shape[1 + int(planes):]
+            target = np.full(shape, DEFAULT.get(name, 0), values.dtype)
+        target[(slice(None),) * int(planes) + (slice(first, first + rows),)] = values
+        return target
 
     def put_range(self, target, first, values):
         """Write ``values`` (one per lane of the pixels first, first + 1, ...: spp lanes each,
@@ -456,6 +482,7 @@ class Boundary:
         found = []
         rows, cols = self.t.shape
         ended = [bool(np.all(shape == STOP)) for shape in self.chain_shape]
+        ended += [True] * (CHAIN_DEPTH - len(ended))  # (bounces no chain reached)
         for axis in (1, 0):  # rows (X, X + 1), then columns (Y, Y + 1)
             # every pair at once, as two views of the lattice: L (the first sample of each
             # pair) and R (the second)
@@ -747,9 +774,9 @@ class Boundary:
     def blocker(lit, occluder, index, L, R):
         """(shape, prim) per pair (numpy) of what blocks light ``index`` (per pair: the first
         index of ``lit`` and ``occluder``) at the unlit one of L and R (NO_HIT: nothing)."""
-        blocked_l = ~lit[index, L[0], L[1]]
-        return np.where(blocked_l[:, None], occluder[index, L[0], L[1]],
-                        occluder[index, R[0], R[1]])
+        blocked_l = ~picked(lit, index, L)
+        return np.where(blocked_l[:, None], picked(occluder, index, L),
+                        picked(occluder, index, R))
 
     def shadow_crossing(self, table, ray, si, light, blocker, which, g):
         """g of the shadow pairs ``which`` (numpy) of light ``light`` (per pair) at the hits
@@ -822,14 +849,14 @@ class Boundary:
                                  dr.select(at, ray.d, final_ray.d))
             final_si = _merge(at, si, final_si)
         d = np.maximum(depth, 0)
-        left = tuple(a[d, L[0], L[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
-        right = tuple(a[d, R[0], R[1]] for a in (self.chain_shape, self.chain_prim, self.chain_t))
+        left = tuple(picked(a, d, L) for a in (self.chain_shape, self.chain_prim, self.chain_t))
+        right = tuple(picked(a, d, R) for a in (self.chain_shape, self.chain_prim, self.chain_t))
         vis = self.visibility(table, final_ray, left, right)
         g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_VISIBILITY, lanes)), vis, g)
         g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_TIR, lanes)), margin, g)
         if (kind == CHAIN_CHECKER).any():
-            cl, cr = (np.stack([self.chain_cell[d, c, p[0], p[1]] for c in (0, 1)], -1)
-                      for p in (L, R))
+            cl, cr = (np.stack([picked([cell[c] for cell in self.chain_cell], d, p)
+                                for c in (0, 1)], -1) for p in (L, R))
             g = self.checker_crossing(terms, final_si, cl, cr, kind == CHAIN_CHECKER, g)
         if (kind == CHAIN_SHADOW).any():
             index = d * len(self.lights) + light

@@ -315,3 +315,21 @@ sphere
                          "light1.position": mi.Point3f(radian, 0.0, -2.0 * radian)}) / radian
     assert np.abs(camera).max() > 1.0
     assert relative_l2(camera, turned) < 1e-2
+
+
+def test_keys_traced_in_blocks_of_rows_give_the_derivative_of_one_block(mi):
+    """A memory budget that just holds the lattice's keys traces them in two blocks of rows
+    (a block's Dr.Jit arrays and the host's copy within it): the chain's keys (the mirror
+    floor, seen by the lower half only, so the upper block reaches no bounce) are made with
+    the second block, filled in for the first. The derivative is
+    the one-block lattice's, to the float32 order of the adjoint pass's sums over its
+    chunks (the budget splits those too)."""
+    from raymitsuba.plugins.whitted import boundary
+
+    per_sample = boundary.BYTES_PER_SAMPLE + boundary.BYTES_PER_LIGHT  # (one point light)
+    budget = W * H * 16 * per_sample
+    w = weights()
+    one = reverse(mi, MIRRORED_SHADOW, "camera.eye", w, 16)
+    blocks = reverse(mi, MIRRORED_SHADOW, "camera.eye", w, 16, memory_budget=budget)
+    assert np.all(one != 0.0)
+    np.testing.assert_allclose(blocks, one, rtol=1e-5)
