@@ -40,7 +40,10 @@ therefore pass through a :func:`joint`: an identity whose derivative, as it pass
 scheduled for evaluation (``dr.schedule``), so the first reduction evaluates the
 derivative with respect to every ray and row once, in one kernel, and the reductions read
 it (a gradient step of ``translate2.offset`` and ``camera.eye`` at 256 x 192, k = 4: the
-chunks' backward kernels 147 ms -> 25 ms).
+chunks' backward kernels 147 ms -> 25 ms). The camera's rays do the same before their
+normalization, and their image-plane coordinates q are computed once, with the rays: each
+component of the frame's sum then reads two arrays instead of making the rays again (the
+reductions' kernels from 140-220 operations to 7).
 """
 
 import copy
@@ -126,6 +129,7 @@ class CameraAD:
         x0, y0, z0 = look_at_frame(start["eye"], start["lookat"], start["up"])
         d = ray.d
         q = mi.Vector2f(dr.dot(d, x0), dr.dot(d, y0)) / dr.dot(d, z0)
+        dr.schedule(q)  # (read by the keys' sums: computed once, with the rays' kernel)
         vec = {k: mi.Vector3f(self.values[k]) if k in self.values else mi.Vector3f(start[k])
                for k in ("eye", "lookat", "up")}
         x, y, z = look_at_frame(vec["eye"], vec["lookat"], vec["up"])
@@ -134,7 +138,7 @@ class CameraAD:
             half = dr.deg2rad(self.values["fov"]) * 0.5
             s = dr.tan(half) / dr.opaque(mi.Float, float(np.tan(np.radians(self.start["fov"])
                                                                 * 0.5)))
-        direction = dr.normalize(s * (q.x * x + q.y * y) + z)
+        direction = dr.normalize(joint(s * (q.x * x + q.y * y) + z))
         out = mi.Ray3f(ray)
         out.o, out.d = joint((dr.replace_grad(ray.o, mi.Point3f(vec["eye"])),
                               dr.replace_grad(ray.d, direction)))
