@@ -289,6 +289,7 @@ class Boundary:
         # the kinds of pairs formed, as a table by kind + 1 (-1: no pair)
         self.formed = np.zeros(KINDS + 1, bool)
         self.formed[np.array(sorted(kinds), int) + 1] = True
+        self.light_type = np.min_scalar_type(max(len(self.lights) - 1, 0))  # (a light's index)
         per_sample = BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights)
         need = width * height * spp * per_sample
         # the keys are traced in blocks of at most this many samples (their Dr.Jit arrays
@@ -496,7 +497,7 @@ class Boundary:
             right = np.s_[:, 1:] if axis == 1 else np.s_[1:, :]
             visibility = self.surface_differs(left, right, kind_of)
             kind = np.full(visibility.shape, -1, np.int8)  # (small types: a pass per array)
-            light = np.zeros(visibility.shape, np.int32)
+            light = np.zeros(visibility.shape, self.light_type)
             kind[visibility] = VISIBILITY
             same = ~visibility & (self.shape[left] != NO_HIT)
             # On one surface, a pair across one edge only: where a shadow edge and a checker
@@ -545,7 +546,7 @@ class Boundary:
                 kind[switch] = CHAIN_TIR
                 depth[ok | switch] = d
                 pending &= ~here
-            keep = self.formed[kind + 1]  # (-1: none, or left out)
+            keep = self.kept(kind)
             ly, lx = nonzero(keep)  # (row-major: the order of the lattice)
             ry, rx = ly + (axis == 0), lx + (axis == 1)
             # the neighbours of L and R across the axis, either side (one side at the border):
@@ -564,6 +565,15 @@ class Boundary:
         return {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))
                        if name in POINTS else np.concatenate([f[name] for f in found]))
                 for name in found[0]}
+
+    def kept(self, kind):
+        """Where a pair of ``kind`` (int8 lattice array; -1: none, or left out) is formed."""
+        if self.formed[1:].all():
+            return kind >= 0
+        keep = np.zeros(kind.shape, bool)
+        for formed in np.flatnonzero(self.formed[1:]):
+            keep |= kind == formed
+        return keep
 
     def surface_differs(self, left, right, kind_of):
         """Whether two samples see different surfaces (the lattice's views ``left`` and
@@ -606,7 +616,9 @@ class Boundary:
         points = {name: tuple(a[sl] for a in pairs[name]) for name in POINTS}
         L, R = points["L"], points["R"]
         kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
-        crossing = (L, R, kind, light, pairs["depth"][sl])  # what picks g (see g_at)
+        # what picks g (see g_at); its choices made from L's and R's values, kept for the
+        # second pass
+        crossing = (L, R, kind, light, pairs["depth"][sl], {})
         # g at the lattice points (detached): the crossing where it changes sign, linear
         # between L and R
         with dr.suspend_grad():
@@ -647,20 +659,22 @@ class Boundary:
             surrogate += rim
         return surrogate, self.spread(L, axis, w, np.abs(across) / np.maximum(np.abs(along), 1e-30))
 
-    def g_at(self, terms, sets, L, R, kind, light, depth):
+    def g_at(self, terms, sets, L, R, kind, light, depth, choices):
         """g at the point sets ``sets`` (a list of (y, x) lattice coordinates, numpy, one
         point per pair; the first two L and R, whose values pick g's function for each
         pair) traced as one stack of rays: (a Float of len(sets) P lanes, point set i at
         lanes i P .. (i + 1) P - 1, attached as ``terms`` and the camera's keys are; its
-        values as numpy (len(sets), P))."""
+        values as numpy (len(sets), P)). ``choices`` (a dict): the picks made from L's and
+        R's values (which function, which edge of a face) by an earlier call with the same
+        pairs, or empty: made here, and kept in it."""
         table = terms.geometry
         ray = self.film_rays(*(np.concatenate([point[i] for point in sets]) for i in range(2)))
         dr.eval(ray)
         # (coherent: the stack's rays come in the lattice's order, neighbours together)
         si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=True))
-        g = self.crossing(table, terms, ray, si, L, R, kind, light)
+        g = self.crossing(table, terms, ray, si, L, R, kind, light, choices)
         if (depth >= 0).any():
-            g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light)
+            g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light, choices)
         dr.eval(g)
         return g, dr.detach(g).numpy().astype(np.float64).reshape(len(sets), len(kind))
 
@@ -765,13 +779,14 @@ class Boundary:
             pixels.append(np.where(axis == 1, band * self.width + along, along * self.width + band))
         return np.stack(pixels, -1), np.stack(fractions, -1)
 
-    def crossing(self, table, terms, ray, si, L, R, kind, light):
+    def crossing(self, table, terms, ray, si, L, R, kind, light, choices):
         """g at the stacked rays ``ray`` (see g_at), hitting ``si`` (a Float, attached)."""
         choice = self.visibility(table, ray, (self.shape[L], self.prim[L], self.t[L]),
-                                 (self.shape[R], self.prim[R], self.t[R]))
+                                 (self.shape[R], self.prim[R], self.t[R]), choices, "first")
         if (kind == SHADOW).any():
             blocker = self.blocker(self.lit, self.occluder, light, L, R)
-            choice = self.shadow_crossing(table, ray, si, light, blocker, kind == SHADOW, choice)
+            choice = self.shadow_crossing(table, ray, si, light, blocker, kind == SHADOW, choice,
+                                          choices, "first")
         # checker lines
         if (kind == CHECKER).any():
             choice = self.checker_crossing(terms, si, cells_at(self.cell, L),
@@ -787,12 +802,12 @@ class Boundary:
         return np.where(blocked_l[:, None], picked(occluder, index, L),
                         picked(occluder, index, R))
 
-    def shadow_crossing(self, table, ray, si, light, blocker, which, g):
+    def shadow_crossing(self, table, ray, si, light, blocker, which, g, choices, name):
         """g of the shadow pairs ``which`` (numpy) of light ``light`` (per pair) at the hits
         ``si`` of the stacked rays ``ray``: the blocking primitive's inside function on the
         shadow rays; where the unlit sample has no blocker, it faces away from the light
         (the terminator: N.L) or lies outside a spot's cone (cos a, where its sign differs
-        between L and R)."""
+        between L and R). ``choices``: see g_at (theirs: under ``name`` and the light)."""
         lanes = dr.width(si.p)
         unblocked = jit_array(mi.Bool, stacked(blocker[:, 0] == NO_HIT, lanes))
         for j, source in enumerate(self.lights):
@@ -802,44 +817,60 @@ class Boundary:
             wi, _, _ = source.illuminate(si.p)
             shadow = mi.Ray3f(si.p, wi)
             facing = dr.dot(self.tracer.facing_normal(si, ray), wi)
+            made = choices.get((name, "shadow", j))
             if has_cone(source):  # a spot's cone edge (cos a = 0) rather than the terminator
                 cone = spot_cosine(source, wi)
-                with dr.suspend_grad():
-                    cos_l, cos_r = at_l_and_r(cone, len(which))
-                crosses = stacked(np.sign(cos_l) != np.sign(cos_r), lanes)
-                facing = dr.select(jit_array(mi.Bool, crosses), cone, facing)
-            edge = self.crossed_edge(table, shadow, blocker[:, 0], blocker[:, 1])
+                if made is None:
+                    with dr.suspend_grad():
+                        cos_l, cos_r = at_l_and_r(cone, len(which))
+                    crosses = np.sign(cos_l) != np.sign(cos_r)
+                else:
+                    crosses = made[0]
+                facing = dr.select(jit_array(mi.Bool, stacked(crosses, lanes)), cone, facing)
+            else:
+                crosses = None
+            edge = made[1] if made is not None else \
+                self.crossed_edge(table, shadow, blocker[:, 0], blocker[:, 1])
+            choices[(name, "shadow", j)] = (crosses, edge)
             gs = self.inside(table, shadow, stacked(blocker[:, 0], lanes),
                              stacked(blocker[:, 1], lanes), stacked(edge, lanes))
             g = dr.select(jit_array(mi.Bool, stacked(mask, lanes)),
                           dr.select(unblocked, facing, gs), g)
         return g
 
-    def visibility(self, table, ray, left, right):
+    def visibility(self, table, ray, left, right, choices, name):
         """g of a visibility edge between the rays of L and R (of the stacked rays ``ray``),
         which see (shape, prim, t) ``left`` and ``right`` (per pair): N is the nearer; N's
         inside function where the other ray's line misses N's primitive, else the other's,
-        else (a crease) the difference of the two primitives' distances."""
+        else (a crease) the difference of the two primitives' distances. ``choices``: see
+        g_at (theirs: under ``name``)."""
         lanes = dr.width(ray.d)
         near_is_l = left[2] <= right[2]
         n_shape, n_prim = (np.where(near_is_l, a, b) for a, b in zip(left[:2], right[:2]))
         f_shape, f_prim = (np.where(near_is_l, b, a) for a, b in zip(left[:2], right[:2]))
-        n_edge = self.crossed_edge(table, ray, n_shape, n_prim)
-        f_edge = self.crossed_edge(table, ray, f_shape, f_prim)
-        n_shape, n_prim, n_edge, f_shape_s, f_prim, f_edge = (
+        made = choices.get((name, "visibility"))
+        if made is None:
+            n_edge = self.crossed_edge(table, ray, n_shape, n_prim)
+            f_edge = self.crossed_edge(table, ray, f_shape, f_prim)
+        else:
+            n_edge, f_edge, use_n, use_f = made
+        n_shape_s, n_prim_s, n_edge_s, f_shape_s, f_prim_s, f_edge_s = (
             stacked(a, lanes) for a in (n_shape, n_prim, n_edge, f_shape, f_prim, f_edge))
-        gn = self.inside(table, ray, n_shape, n_prim, n_edge)
-        gf = self.inside(table, ray, f_shape_s, f_prim, f_edge)
-        crease = self.depth(table, ray, n_shape, n_prim) - self.depth(table, ray, f_shape_s, f_prim)
-        dr.eval(gn, gf, crease)
-        gn_l, gn_r = at_l_and_r(dr.detach(gn), len(f_shape))
-        gf_l, gf_r = at_l_and_r(dr.detach(gf), len(f_shape))
-        use_n = np.sign(gn_l) != np.sign(gn_r)
-        use_f = ~use_n & (f_shape < STOP) & (np.sign(gf_l) != np.sign(gf_r))
+        gn = self.inside(table, ray, n_shape_s, n_prim_s, n_edge_s)
+        gf = self.inside(table, ray, f_shape_s, f_prim_s, f_edge_s)
+        crease = self.depth(table, ray, n_shape_s, n_prim_s) \
+            - self.depth(table, ray, f_shape_s, f_prim_s)
+        if made is None:
+            dr.eval(gn, gf, crease)
+            gn_l, gn_r = at_l_and_r(dr.detach(gn), len(f_shape))
+            gf_l, gf_r = at_l_and_r(dr.detach(gf), len(f_shape))
+            use_n = np.sign(gn_l) != np.sign(gn_r)
+            use_f = ~use_n & (f_shape < STOP) & (np.sign(gf_l) != np.sign(gf_r))
+            choices[(name, "visibility")] = (n_edge, f_edge, use_n, use_f)
         return dr.select(jit_array(mi.Bool, stacked(use_n, lanes)), gn,
                          dr.select(jit_array(mi.Bool, stacked(use_f, lanes)), gf, crease))
 
-    def chain_crossing(self, table, terms, ray, si, L, R, kind, depth, g, light):
+    def chain_crossing(self, table, terms, ray, si, L, R, kind, depth, g, light, choices):
         """g of the pairs whose edge is seen along the specular chain, at bounce ``depth``:
         each ray's chain replayed, attached, then the visibility, checker or shadow function
         there (``light``: per pair, the light of a shadow), or (total internal reflection
@@ -860,7 +891,7 @@ class Boundary:
         d = np.maximum(depth, 0)
         left = tuple(picked(a, d, L) for a in (self.chain_shape, self.chain_prim, self.chain_t))
         right = tuple(picked(a, d, R) for a in (self.chain_shape, self.chain_prim, self.chain_t))
-        vis = self.visibility(table, final_ray, left, right)
+        vis = self.visibility(table, final_ray, left, right, choices, "chain")
         g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_VISIBILITY, lanes)), vis, g)
         g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_TIR, lanes)), margin, g)
         if (kind == CHAIN_CHECKER).any():
@@ -871,7 +902,7 @@ class Boundary:
             index = d * len(self.lights) + light
             blocker = self.blocker(self.chain_lit, self.chain_occluder, index, L, R)
             g = self.shadow_crossing(table, final_ray, final_si, light, blocker,
-                                     kind == CHAIN_SHADOW, g)
+                                     kind == CHAIN_SHADOW, g, choices, "chain")
         return g
 
     def checker_crossing(self, terms, si, cl, cr, which, g):
