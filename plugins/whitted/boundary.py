@@ -306,19 +306,20 @@ class Boundary:
         # shape and face hit, its distance, the checker cell there and whether the bounce
         # was a total internal reflection; lit and what blocks it, per bounce and light
         # (index d * lights + j)
-        self.shape = self.prim = self.t = self.normal = self.cell = self.color = None
-        self.lit, self.occluder = [], []
+        self.shape = self.prim = self.t = self.cell = None
+        self.normal, self.lit, self.occluder = [], [], []  # (normal: its x, y, z planes)
+        # the samples' colors as the adjoint pass left them: (first lane, Color3f) per chunk,
+        # a lane per camera ray in pixel order (read where a pair's jump needs them)
+        self.colors = []
         self.chain_shape, self.chain_prim, self.chain_t, self.chain_cell = [], [], [], []
         self.chain_tir, self.chain_lit, self.chain_occluder = [], [], []
 
     # -- the keys --------------------------------------------------------------------------------
     def collect(self, job, start, count, color):
-        """Record the colors of a chunk's samples (``color``: one lane per camera ray of the
+        """Keep the colors of a chunk's samples (``color``: one lane per camera ray of the
         job's pixels start .. start + count - 1; the job: a range of pixels, as the adjoint
         pass's is without anti-aliasing)."""
-        if self.color is None:  # (every pixel's colors come: no default)
-            self.color = np.empty((self.height * self.k, self.width * self.k, 3), np.float32)
-        self.put_range(self.color, job.first + start, _host(dr.detach(color)))
+        self.colors.append(((job.first + start) * self.k ** 2, dr.detach(color)))
 
     def trace_keys(self):
         """The keys of every lattice sample (see :meth:`keys`), traced in blocks of lattice
@@ -360,26 +361,19 @@ class Boundary:
         target[(slice(None),) * int(planes) + (slice(first, first + rows),)] = values
         return target
 
-    def put_range(self, target, first, values):
-        """Write ``values`` (one per lane of the pixels first, first + 1, ...: spp lanes each,
-        sample s at (s // k, s % k) of its pixel) into the lattice array ``target`` ((H k, W k,
-        ...)): the pixels of one image row at a time, or whole rows, as blocks."""
-        k, width = self.k, self.width
-        tail = target.shape[2:]
-        view = target.reshape((self.height, k, width, k) + tail)  # [row, sy, column, sx]
-        per_pixel = values.reshape((-1, k, k) + tail)  # [pixel, sy, sx]
-        done, total = 0, len(per_pixel)
-        while done < total:
-            row, column = divmod(first + done, width)
-            if column == 0 and total - done >= width:  # whole rows
-                rows = (total - done) // width
-                block = per_pixel[done:done + rows * width].reshape((rows, width, k, k) + tail)
-                view[row:row + rows] = block.swapaxes(1, 2)
-                done += rows * width
-            else:  # the pixels of one row
-                span = min(width - column, total - done)
-                view[row, :, column:column + span] = per_pixel[done:done + span].swapaxes(0, 1)
-                done += span
+    def colors_at(self, points):
+        """The colors (numpy (n, 3)) of the samples at lattice points (y, x) (numpy)."""
+        y, x = points
+        k = self.k
+        pixel = (y // k) * self.width + x // k
+        lane = pixel * k * k + (y % k) * k + x % k  # (sample (sy, sx): lane sy k + sx)
+        out = np.zeros((len(lane), 3), np.float32)
+        for first, color in self.colors:
+            at = (lane >= first) & (lane < first + dr.width(color))
+            if at.any():
+                index = jit_array(mi.UInt32, (lane[at] - first).astype(np.uint32))
+                out[at] = _host(dr.gather(mi.Color3f, color, index))
+        return out
 
     def keys(self, rays):
         """The keys of the samples of ``rays`` (detached), as numpy arrays. Each hit's keys
@@ -392,7 +386,7 @@ class Boundary:
         keys_k["normal"] = si.n
         alive = hit & keys_k["go"]  # (with a next ray of the chain)
         dr.eval(keys_k, alive)
-        out = _host_keys(keys_k) | {"normal": _host(keys_k["normal"])}
+        out = _host_keys(keys_k) | {"normal": [c.numpy() for c in keys_k["normal"]]}
         out |= {"chain_" + name: [] for name in ("shape", "prim", "t", "cell", "tir", "lit",
                                                  "occluder")}
         for _ in range(CHAIN_DEPTH):
@@ -588,7 +582,7 @@ class Boundary:
         flat = (kind & MESH != 0) & (kind & SMOOTH == 0)
         where = tuple(i[flat] for i in nonzero(faces))  # (only these: the normals' test
         # over the whole lattice is the costly part)
-        nl, nr = self.normal[left][where], self.normal[right][where]
+        nl, nr = (np.stack([c[side][where] for c in self.normal], -1) for side in (left, right))
         bent = np.linalg.norm(nl - nr, axis=-1) > COPLANAR
         differs = differs.copy()
         differs[tuple(i[bent] for i in where)] = True
@@ -753,7 +747,12 @@ class Boundary:
             colors = _host(color).reshape(2, count, 3)
             shapes = shape.numpy().reshape(2, count)
         same = (shapes[0] == self.shape[L]) & (shapes[1] == self.shape[R])
-        return np.where(same[:, None], colors[0] - colors[1], self.color[L] - self.color[R])
+        jump = colors[0] - colors[1]
+        if not same.all():
+            other = ~same
+            jump[other] = self.colors_at((L[0][other], L[1][other])) \
+                - self.colors_at((R[0][other], R[1][other]))
+        return jump
 
     def spread(self, L, axis, w, slope):
         """Where each pair's term goes: (pixel (n, 3), fraction (n, 3)) numpy. The crossing
