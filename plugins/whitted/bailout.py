@@ -142,4 +142,4 @@ def texel_bound(texture):
 
 def host_color(color):
     """A Color3f of width 1 (a light's, the background's) as a numpy (3,) float64 array."""
-    return np.array([float(dr.detach(c)[0]) for c in color], np.float64)
+    return np.asarray(dr.detach(color).numpy(), np.float64).reshape(3, -1)[:, 0]
