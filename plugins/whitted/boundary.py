@@ -28,13 +28,14 @@ than the specular chain, and a pair of samples with two edges between them.
 
 **The lattice.** The samples of all pixels form one uniform grid over the image, spacing
 1/k pixel (sample (sx, sy) of pixel (px, py) is lattice point X = px k + sx, Y = py k + sy).
-Each sample's *key* is traced, detached, in the lattice's own order (:meth:`Boundary.trace_keys`,
-the render's very rays): the shape and face hit (and the face's normal), the checker cell,
-for each light whether it is lit and what blocks it, the same of each bounce of the
-specular chain (with its total internal reflection flag); the sample's color f is recorded
-while the adjoint pass traces it (:meth:`Boundary.collect`). These keys take host memory
-(BYTES_PER_SAMPLE per sample): a lattice whose keys exceed the memory budget is refused
-(BudgetError) before anything is traced.
+Each sample's *key* is recorded as the adjoint pass traces it, from its own hits and shadow
+rays, in the same kernel (:meth:`Boundary.recorder`: the keys cost no trace of their own):
+the shape and face hit (and the face's normal), the checker cell, for each light whether it
+is lit and what blocks it; the same of each bounce of the specular chain (with its total
+internal reflection flag) is traced from there (:meth:`Boundary.trace_keys`); the sample's
+color f is kept as the adjoint pass leaves it (:meth:`Boundary.collect`). These keys take
+memory (BYTES_PER_SAMPLE per sample): a lattice whose keys exceed the memory budget is
+refused (BudgetError) before anything is traced.
 
 **Pairs.** Two lattice neighbours (in a row or a column) whose keys differ have an edge
 between them. For each such pair a smooth signed *crossing function* g(ray, theta) is
@@ -92,7 +93,6 @@ import numpy as np
 from raymitsuba.options import GIB
 
 from .arrays import jit_array
-from .camera import lattice_rays
 from .chunks import MAX_CHUNK_LANES
 from .guards import BudgetError
 from .hits import MESH, SMOOTH, SPHERE, traversed_values
@@ -104,9 +104,10 @@ COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one sur
 KINDS = 7  # kinds of pairs:
 VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW = range(KINDS)
 CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
-# host bytes of one sample's keys (shape, face, distance, normal, checker cell, color and,
-# per bounce of the chain, shape, face, distance, cell, TIR flag) and per light (lit, blocker)
-BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 8 + 12 + CHAIN_DEPTH * (4 + 4 + 4 + 8 + 1)
+# bytes of one sample's keys (shape, face, distance, normal, checker cell, the chain's first
+# ray, whether it goes on and is a total internal reflection and, per bounce of the chain,
+# shape, face, distance, cell, TIR flag) and per light (lit, blocker)
+BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 8 + 24 + 2 + CHAIN_DEPTH * (4 + 4 + 4 + 8 + 1)
 BYTES_PER_LIGHT = (1 + 8) * (1 + CHAIN_DEPTH)  # lit and blocker, first hit and chain
 STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
 # the chain's keys of a sample whose chain ended before the bounce (those of the first hit
@@ -208,6 +209,20 @@ def picked(arrays, index, points):
     return out
 
 
+def lattice_index(width, k, first_pixel, count):
+    """The lattice point (flat, row-major: W k columns) of each camera ray of the pixels
+    first_pixel .. first_pixel + count - 1 of a ``width``-pixel-wide image on the k x k
+    lattice (a lane per ray, pixel-major; sample s of a pixel at (s // k, s % k) within it):
+    a UInt32."""
+    lane = dr.arange(mi.UInt32, count * k * k)
+    pixel = lane // (k * k)
+    sample = lane - pixel * (k * k)
+    pixel += dr.opaque(mi.UInt32, first_pixel)  # (data, not a constant of the kernel)
+    py = pixel // width
+    y, x = py * k + sample // k, (pixel - py * width) * k + sample % k
+    return y * (width * k) + x
+
+
 def lattice_side(spp):
     """k for ``spp`` = k^2 samples per pixel (None: not a square lattice)."""
     k = int(round(spp ** 0.5))
@@ -254,6 +269,20 @@ def _host_keys(keys):
             "t": keys["t"].numpy(), "cell": _planes(keys["cell"]),
             "lit": [v.numpy() for v in keys["lit"]],
             "occluder": [_host(v) for v in keys["occluder"]]}
+
+
+def _recorded_values(keys, chain):
+    """(name, Dr.Jit value) of a first hit's keys as :meth:`Boundary.recorder` keeps them: a
+    light's lit and occluder as lit{j}, occluder{j}; the chain's first ray (next_o, next_d),
+    go and tir where the scene has a mirror or glass (``chain``)."""
+    for name in ("shape", "prim", "t", "cell", "normal"):
+        yield name, keys[name]
+    for name in ("lit", "occluder"):
+        for j, value in enumerate(keys[name]):
+            yield f"{name}{j}", value
+    if chain:
+        yield from (("next_o", keys["next"].o), ("next_d", keys["next"].d), ("go", keys["go"]),
+                    ("tir", keys["tir"]))
 
 
 def _host(vector):
@@ -311,6 +340,9 @@ class Boundary:
         # the samples' colors as the adjoint pass left them: (first lane, Color3f) per chunk,
         # a lane per camera ray in pixel order (read where a pair's jump needs them)
         self.colors = []
+        # the first hits' keys recorded by the adjoint pass (recorder): {name: Dr.Jit array, a
+        # lane per lattice point, row-major}
+        self.recorded = {}
         self.chain_shape, self.chain_prim, self.chain_t, self.chain_cell = [], [], [], []
         self.chain_tir, self.chain_lit, self.chain_occluder = [], [], []
 
@@ -321,27 +353,66 @@ class Boundary:
         pass's is without anti-aliasing)."""
         self.colors.append(((job.first + start) * self.k ** 2, dr.detach(color)))
 
+    def recorder(self, job):
+        """The ``record`` of the adjoint pass's chunks of ``job`` (``Chunker.run``): the keys
+        of each chunk's first hits (:meth:`hit_keys`, from the trace's own hits and shadow
+        rays) scattered to their lattice points in :attr:`recorded`, in the chunk's kernel:
+        the samples' keys cost no trace of their own."""
+        def record(start, count):
+            index = lattice_index(self.width, self.k, job.first + start, count)
+
+            def first_hit(si, rays, hit, shadows):
+                with dr.suspend_grad():
+                    keys = self.hit_keys(si, rays, hit, shadows)
+                    keys["normal"] = si.n
+                    for name, value in _recorded_values(keys, self.terms.surfaces.any_specular):
+                        value = dr.detach(value)
+                        if name not in self.recorded:
+                            self.recorded[name] = dr.empty(type(value), self.k ** 2 * self.width
+                                                           * self.height)
+                        dr.scatter(self.recorded[name], value, index)
+
+            return first_hit
+
+        return record
+
     def trace_keys(self):
-        """The keys of every lattice sample (see :meth:`keys`), traced in blocks of lattice
-        rows in the lattice's own order (the camera rays of ``camera.lattice_rays``, those
-        the render traces, bit for bit), written into the lattice's arrays as they come (a
-        lattice traced as one block keeps its keys' arrays as they are)."""
-        columns, total = self.width * self.k, self.height * self.k
+        """The keys of every lattice sample: the first hits' as the adjoint pass recorded them
+        (:meth:`recorder`), then the specular chain's (:meth:`chain_keys`), traced from there
+        in blocks of lattice rows; written into the lattice's arrays as they come (those of
+        one block kept as they are)."""
+        recorded, lights = self.recorded, range(len(self.lights))
+        first = {name: recorded[name] for name in ("shape", "prim", "t", "cell")}
+        first |= {"lit": [recorded[f"lit{j}"] for j in lights],
+                  "occluder": [recorded[f"occluder{j}"] for j in lights]}
+        total, columns = self.height * self.k, self.width * self.k
+        self.put(_host_keys(first) | {"normal": [c.numpy() for c in recorded["normal"]]}, 0,
+                 total)
+        if "go" not in recorded:  # (no mirror, no glass: no chain)
+            return
         block = max(self.block_lanes // columns, 1)
-        for first in range(0, total, block):
-            rows = min(block, total - first)
+        for first_row in range(0, total, block):
+            rows = min(block, total - first_row)
+            lane = dr.arange(mi.UInt32, rows * columns) \
+                + dr.opaque(mi.UInt32, first_row * columns)
+            ray = mi.Ray3f(dr.gather(mi.Point3f, recorded["next_o"], lane),
+                           dr.gather(mi.Vector3f, recorded["next_d"], lane))
             with dr.suspend_grad():
-                keys = self.keys(lattice_rays(self.sensor, self.width, self.height, self.k,
-                                              first, rows))
-            for name, values in keys.items():
-                if isinstance(values, list):  # (per light, bounce, or bounce and light)
-                    into = getattr(self, name)
-                    for j, v in enumerate(values):
-                        into += [None] * (j + 1 - len(into))
-                        into[j] = self.put_rows(into[j], name, first, rows, v)
-                else:
-                    setattr(self, name, self.put_rows(getattr(self, name), name, first, rows,
-                                                      values))
+                self.put(self.chain_keys(ray, dr.gather(mi.Bool, recorded["go"], lane),
+                                         dr.gather(mi.Bool, recorded["tir"], lane)),
+                         first_row, rows)
+
+    def put(self, keys, first, rows):
+        """Write ``keys`` (numpy, of lattice rows first .. first + rows - 1; lists: per light,
+        bounce, or bounce and light) into the lattice's arrays (:meth:`put_rows`)."""
+        for name, values in keys.items():
+            if isinstance(values, list):
+                into = getattr(self, name)
+                for j, v in enumerate(values):
+                    into += [None] * (j + 1 - len(into))
+                    into[j] = self.put_rows(into[j], name, first, rows, v)
+            else:
+                setattr(self, name, self.put_rows(getattr(self, name), name, first, rows, values))
 
     def put_rows(self, target, name, first, rows, values):
         """``target`` (a lattice array of key ``name``, or None: not yet made) with the
@@ -375,55 +446,55 @@ class Boundary:
                 out[at] = _host(dr.gather(mi.Color3f, color, index))
         return out
 
-    def keys(self, rays):
-        """The keys of the samples of ``rays`` (detached), as numpy arrays. Each hit's keys
-        (the first hit's, then each bounce's of the specular chain) are one evaluation: one
-        kernel traces the rays, the shadow rays and the chain's next rays."""
+    def chain_keys(self, ray, alive, tir):
+        """The keys of the specular chain (numpy lists, a bounce each: ``chain_shape``, ...,
+        ``chain_tir``) from its first rays ``ray``, where ``alive`` (the first hits with a
+        next ray), ``tir``: where that ray is a total internal reflection. Each bounce's keys
+        are one evaluation."""
         scene, table = self.scene, self.terms.geometry
-        si = self.tracer.intersect(scene, table, rays, coherent=True)
-        hit = si.is_valid()
-        keys_k = self.hit_keys(si, rays, hit)
-        keys_k["normal"] = si.n
-        alive = hit & keys_k["go"]  # (with a next ray of the chain)
-        dr.eval(keys_k, alive)
-        out = _host_keys(keys_k) | {"normal": [c.numpy() for c in keys_k["normal"]]}
-        out |= {"chain_" + name: [] for name in ("shape", "prim", "t", "cell", "tir", "lit",
+        out = {"chain_" + name: [] for name in ("shape", "prim", "t", "cell", "tir", "lit",
                                                  "occluder")}
         for _ in range(CHAIN_DEPTH):
             if not dr.any(alive):  # (the chain's keys past its end: as the lattice starts)
                 break
-            ray_k, tir = keys_k["next"], keys_k["tir"]
-            si_k = self.tracer.intersect(scene, table, ray_k, coherent=False)
+            si_k = self.tracer.intersect(scene, table, ray, coherent=False)
             found = alive & si_k.is_valid()
-            keys_k = self.hit_keys(si_k, ray_k, found)
+            keys_k = self.hit_keys(si_k, ray, found)
             keys_k["shape"] = dr.select(found, keys_k["shape"],
                                         dr.select(alive, mi.UInt32(NO_HIT), mi.UInt32(STOP)))
             at_tir = alive & tir  # (total internal reflection at the bounce that led here)
             alive = found & keys_k["go"]
+            ray, tir = keys_k["next"], keys_k["tir"]
             dr.eval(keys_k, at_tir, alive)
             for name, value in _host_keys(keys_k).items():  # (lit, occluder: one per light)
                 out["chain_" + name] += value if isinstance(value, list) else [value]
             out["chain_tir"].append(at_tir.numpy())
         return out
 
-    def hit_keys(self, si, rays, hit):
+    def hit_keys(self, si, rays, hit, shadows=None):
         """The keys of the hits ``si`` of ``rays`` where ``hit`` (Dr.Jit, not evaluated): the
         shape (NO_HIT: none), face and distance (inf: none); the checker cell; per light,
         whether it lights the point (it faces the light, lies in a spot's cone and the
         shadow ray is free) and what blocks it ((shape, prim); NO_HIT: nothing); and the
-        specular chain's next ray (see chain_step)."""
+        specular chain's next ray (see chain_step). ``shadows``: per light, (blocker,
+        blocked) of the tracer's own shadow rays from these hits (``Tracer.trace``'s
+        ``first_hit``); None: traced here."""
         keys = {"shape": dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT),
                 "prim": si.prim_index, "t": dr.select(hit, si.t, dr.inf),
                 "cell": self.checker_cell(self.terms, si, hit), "lit": [], "occluder": []}
         n = self.tracer.facing_normal(si, rays)
-        for light in self.lights:
+        for j, light in enumerate(self.lights):
             wi, dist, _ = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
             if has_cone(light):  # its cone, cos a > 0
                 active &= spot_cosine(light, wi) > 0
-            shadow = self.tracer.spawn_ray(si, wi)
-            shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
-            blocker = self.scene.ray_intersect_preliminary(shadow, coherent=False, active=active)
+            if shadows is None:
+                shadow = self.tracer.spawn_ray(si, wi)
+                shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
+                blocker = self.scene.ray_intersect_preliminary(shadow, coherent=False,
+                                                               active=active)
+            else:
+                blocker = shadows[j][0]
             blocked = active & blocker.is_valid()
             keys["lit"].append(active & ~blocked)
             keys["occluder"].append(mi.Vector2u(

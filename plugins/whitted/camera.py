@@ -64,23 +64,6 @@ def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None, fo
     return sample(sensor, film_pos, spp ** -0.5 if footprint else None)
 
 
-def lattice_rays(sensor, width, height, n, first_row, rows):
-    """The camera rays of the n x n lattice of samples of spp = n^2 (the sample lattice of the
-    whole image: (height n) x (width n) points, sample (sy, sx) of pixel (py, px) at lattice
-    point (py n + sy, px n + sx)), of lattice rows ``first_row`` .. ``first_row + rows - 1``,
-    row-major: the rays :func:`camera_rays` makes for those samples, bit for bit (the same
-    operations on the same numbers)."""
-    columns = width * n
-    index = dr.arange(mi.UInt32, rows * columns)
-    y = index // columns
-    x = index - y * columns
-    y += dr.opaque(mi.UInt32, first_row)  # (data, not a constant of the kernel)
-    px, py = x // n, y // n
-    offset = mi.Point2f((mi.Float(x - px * n) + 0.5) / n, (mi.Float(y - py * n) + 0.5) / n)
-    film_pos = mi.Point2f((mi.Float(px) + offset.x) / width, (mi.Float(py) + offset.y) / height)
-    return sample(sensor, film_pos)
-
-
 def corner_rays(sensor, width, height, first, count, footprint=False):
     """One camera ray through each of the pixel corners ``first`` .. ``first + count - 1``
     (numbered as in the module docstring) of a ``width`` x ``height`` image (``footprint``:

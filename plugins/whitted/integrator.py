@@ -137,7 +137,8 @@ class Whitted(mi.CppADIntegrator):
                     grad = dr.ravel(dr.grad(means)).numpy().reshape(-1, 3)
                 grads[job.pixel_index(start, count).numpy()] = grad
 
-            chunker.run(job, visit, ad=True)
+            chunker.run(job, visit, ad=True,
+                        record=None if edges is None else edges.recorder(job))
         if edges is not None:
             edges.forward(grads, last=True)
         return jit_tensor(grads.reshape(height, width, 3))
@@ -165,7 +166,8 @@ class Whitted(mi.CppADIntegrator):
                 if edges is not None:
                     edges.collect(job, start, count, color)
 
-            chunker.run(job, visit, ad=True, lazy=True)
+            chunker.run(job, visit, ad=True, lazy=True,
+                        record=None if edges is None else edges.recorder(job))
         if edges is not None:
             edges.backward(grad_in.numpy().reshape(-1, 3))
 

@@ -142,13 +142,16 @@ class Tracer:
         self.surfaces = terms.surfaces
         return terms
 
-    def trace(self, scene, ray, terms, max_rays=None, lazy=False):
+    def trace(self, scene, ray, terms, max_rays=None, lazy=False, first_hit=None):
         """The :class:`Trace` of each ray of ``ray`` (one lane per ray) through its whole
         tree, with the scene's ``terms`` (from :meth:`scene_terms`). ``max_rays``: a tree of
         more rays than this raises :class:`TreeTooLarge` (None: no limit). ``lazy``: the
         camera rays' colors are left unevaluated, for a caller that evaluates them with what
         it computes from them (an adjoint pass: with the derivative, in its kernel); a gather
-        from them would evaluate them alone."""
+        from them would evaluate them alone. ``first_hit``: optional callable(si, ray, hit,
+        shadows) given the first generation's hits and, per light, its shadow rays' (closest
+        blocker (a PreliminaryIntersection3f), blocked), lazily, as they are traced (the
+        boundary terms' keys, boundary.py, computed in the same kernel)."""
         limits = bailout.path_weight_limits(self.bailout, terms, self.max_depth,
                                             self.max_shadow_crossings)
         path_weight = None if limits is None else mi.Float(1.0)
@@ -159,7 +162,8 @@ class Tracer:
             rays_per_generation.append(dr.width(ray))
             # (no kr or kt > 0 in the scene: no ray has a child, the tree is one generation)
             last = depth == self.max_depth or not terms.surfaces.any_specular
-            step = self.step(scene, terms, ray, depth, not last)
+            step = self.step(scene, terms, ray, depth, not last,
+                             first_hit if depth == 0 else None)
             generation = Generation(step.local)
             generations.append(generation)
             if last:
@@ -179,8 +183,9 @@ class Tracer:
                 dr.eval(color)  # once for all three channels: the next step gathers from each
         return Trace(color, rays_per_generation)
 
-    def step(self, scene, terms, ray, depth, children):
-        """Intersect and shade ``ray``; with ``children``, also the children's weights and rays."""
+    def step(self, scene, terms, ray, depth, children, first_hit=None):
+        """Intersect and shade ``ray``; with ``children``, also the children's weights and rays
+        (``first_hit``: see :meth:`trace`)."""
         si = self.intersect(scene, terms.geometry, ray, coherent=(depth == 0))
         hit = si.is_valid()
         surfaces = terms.surfaces
@@ -190,8 +195,11 @@ class Tracer:
                 and terms.geometry.supported:
             duv = terms.geometry.uv_footprint(si, ray, hit)
         color = surfaces.base_color(si, slot, hit, duv)
-        local = self.shade(scene, terms, si, slot, color, ray)
+        shadows = None if first_hit is None else []
+        local = self.shade(scene, terms, si, slot, color, ray, shadows)
         local = dr.select(hit, local, terms.background)
+        if first_hit is not None:
+            first_hit(si, ray, hit, shadows)
         if not children:
             return Step(local, hit)
         kr = surfaces.get("reflectivity", slot, hit)
@@ -230,8 +238,9 @@ class Tracer:
         n = si.sh_frame.n
         return dr.select(dr.dot(n, ray.d) > 0, -n, n)
 
-    def shade(self, scene, terms, si, slot, color, ray):
-        """L_local at each hit: ambient term plus each light's shadowed Phong term."""
+    def shade(self, scene, terms, si, slot, color, ray, shadows=None):
+        """L_local at each hit: ambient term plus each light's shadowed Phong term
+        (``shadows``: a list that receives each light's shadow blocker, see transmittance)."""
         hit = si.is_valid()
         surfaces, lights = terms.surfaces, terms.direct
         result = terms.ambient * surfaces.get("ambient_mix", slot, hit) * color
@@ -245,13 +254,16 @@ class Tracer:
         for light in lights:
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
-            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, lifted)
+            transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, lifted,
+                                               shadows)
             phong = phong_local(n, v, wi, color, kd, ks, exponent)
             result += dr.select(active, intensity * phong * transmittance, 0.0)
         return result
 
-    def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None):
-        """Product of kt over the surfaces between si.p and the light (0 when blocked)."""
+    def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None, shadows=None):
+        """Product of kt over the surfaces between si.p and the light (0 when blocked).
+        ``shadows``: a list that receives (the shadow ray's closest blocker, blocked), the
+        blocker found by a closest-hit query instead of the any-hit test (the same rays)."""
         ray = self.spawn_ray(si, wi)
         if lifted is not None:  # see lift.py
             terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
@@ -265,7 +277,12 @@ class Tracer:
         with dr.suspend_grad():
             # A cheap any-hit test first: most shadow rays cross nothing, and then the
             # transmittance is exactly 1. Only the others walk their crossings.
-            blocked = scene.ray_test(ray, active)
+            if shadows is None:
+                blocked = scene.ray_test(ray, active)
+            else:
+                blocker = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
+                blocked = active & blocker.is_valid()
+                shadows.append((blocker, blocked))
             if not surfaces.any_transparent:
                 return dr.select(blocked, 0.0, 1.0)  # nothing lets light through
             transmittance, crossed_slots = self.crossings(scene, surfaces, ray, active & blocked,

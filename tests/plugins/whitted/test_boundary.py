@@ -337,13 +337,14 @@ sphere
     assert relative_l2(camera, turned) < 1e-2
 
 
-def test_keys_traced_in_blocks_of_rows_give_the_derivative_of_one_block(mi):
-    """A memory budget that just holds the lattice's keys traces them in two blocks of rows
-    (a block's Dr.Jit arrays and the host's copy within it): the chain's keys (the mirror
-    floor, seen by the lower half only, so the upper block reaches no bounce) are made with
-    the second block, filled in for the first. The derivative is
-    the one-block lattice's, to the float32 order of the adjoint pass's sums over its
-    chunks (the budget splits those too)."""
+def test_keys_in_chunks_and_blocks_of_rows_give_the_derivative_of_one_block(mi):
+    """A memory budget that just holds the lattice's keys: the adjoint pass runs in several
+    chunks (each records its samples' first-hit keys at their lattice points) and the
+    specular chain's keys are traced in two blocks of rows (a block's arrays within it):
+    the chain's keys (the mirror floor, seen by the lower half only, so the upper block
+    reaches no bounce) are made with the second block, filled in for the first. The
+    derivative is the one-block lattice's, to the float32 order of the adjoint pass's sums
+    over its chunks."""
     from raymitsuba.plugins.whitted import boundary
 
     per_sample = boundary.BYTES_PER_SAMPLE + boundary.BYTES_PER_LIGHT  # (one point light)
@@ -353,3 +354,19 @@ def test_keys_traced_in_blocks_of_rows_give_the_derivative_of_one_block(mi):
     blocks = reverse(mi, MIRRORED_SHADOW, "camera.eye", w, 16, memory_budget=budget)
     assert np.all(one != 0.0)
     np.testing.assert_allclose(blocks, one, rtol=1e-5)
+
+
+def test_a_camera_rays_lattice_point_is_its_pixels_sample(mi):
+    """boundary.lattice_index: sample s of pixel (px, py), the render's lane (py W + px) k^2
+    + s, is lattice point (py k + s // k, px k + s % k) (row-major, W k columns), for a
+    chunk starting at any pixel."""
+    from raymitsuba.plugins.whitted import boundary
+
+    width, k = 5, 3
+    first, count = 4, 9  # pixels 4 .. 12: a chunk across rows
+    lane = np.arange(count * k * k)
+    pixel, sample = first + lane // (k * k), lane % (k * k)
+    y = (pixel // width) * k + sample // k
+    x = (pixel % width) * k + sample % k
+    assert np.array_equal(boundary.lattice_index(width, k, first, count).numpy(),
+                          y * width * k + x)
