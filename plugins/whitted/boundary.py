@@ -809,11 +809,15 @@ class Boundary:
         limit = np.where(kind == VISIBILITY, rim, LIMIT)
         step = np.minimum(limit, 0.5 * np.minimum(w, 1.0 - w))
         sides = [self.along_axis(L, axis, w + offset) for offset in (-step, step)]
+        seen = []  # (the shape each side's ray sees, from the trace's own hits)
+
+        def first_hit(si, ray, hit, shadows):
+            seen.append(dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT))
+
         with dr.suspend_grad():
             ray = self.film_rays(*(np.concatenate([side[i] for side in sides]) for i in range(2)))
-            color = self.tracer.trace(self.scene, ray, self.terms).color
-            si = self.scene.ray_intersect_preliminary(ray)
-            shape = dr.select(si.is_valid(), dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT)
+            color = self.tracer.trace(self.scene, ray, self.terms, first_hit=first_hit).color
+            shape = seen[0]
             dr.eval(color, shape)
             colors = _host(color).reshape(2, count, 3)
             shapes = shape.numpy().reshape(2, count)
