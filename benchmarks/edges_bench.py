@@ -169,10 +169,10 @@ def cost(mi, width, height, repeats=5):
         boundary.Boundary.surrogates = surrogates
     s = statistics.median(t for t, _ in steps)
     u = statistics.median(m for _, m in steps)
-    print(f"\ncost at {width} x {height}, spp 16 (k = 4), medians of {repeats}: primal {p:.2f} s, "
-          f"gradient step (translate2.offset, camera.eye) {s:.2f} s (of which the move, "
-          f"params.update(), {u:.2f} s), ratio {s / p:.1f}; boundary pairs {pairs[-1]} "
-          f"({pairs[-1] / (width * height):.1f} per pixel)")
+    print(f"\ncost at {width} x {height}, spp 16 (k = 4), medians of {repeats}: primal "
+          f"{p * 1e3:.1f} ms, gradient step (translate2.offset, camera.eye) {s * 1e3:.1f} ms (of "
+          f"which the move, params.update(), {u * 1e3:.1f} ms), ratio {s / p:.1f}; boundary "
+          f"pairs {pairs[-1]} ({pairs[-1] / (width * height):.1f} per pixel)")
 
 
 def figure(mi, path, width=64, height=48):
