@@ -24,7 +24,8 @@ The lattice's own error where the interior derivative is singular -- a sphere's 
 the sphere or the camera moves -- is subtracted per pair (:meth:`Boundary.rim_correction`).
 
 Not covered (left out, documented in docs/gradients.md): the branches of the tree other
-than the specular chain, and a pair of samples with two edges between them.
+than the specular chain, a pair of samples with two edges between them, and an edge within
+half a lattice spacing of the image's border (no pair straddles it).
 
 **The lattice.** The samples of all pixels form one uniform grid over the image, spacing
 1/k pixel (sample (sx, sy) of pixel (px, py) is lattice point X = px k + sx, Y = py k + sy).
