@@ -119,7 +119,7 @@ LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are 
 # ... of a visibility edge of the surface seen: closer, where the rays either side are
 # checked to see L's and R's surfaces. A sphere's color changes like the square root of the
 # distance to its rim: at LIMIT, f_L - f_R was off by about sqrt(LIMIT / k) of its rim's
-# change over a pixel (a radius's weighted sums at k = 8: 1.55 % -> 0.42 %). At least
+# change over a pixel (a radius's weighted sums at k = 8: 1.55 % -> 0.50 %). At least
 # FILM_ULPS of the film position's float32 resolution (k W 2^-24 lattice units).
 RIM_LIMIT, FILM_ULPS = 2e-4, 4
 # the crossing's refinement: g at two points either side of it, this share of its distance
@@ -322,8 +322,8 @@ class Boundary:
         self.light_type = np.min_scalar_type(max(len(self.lights) - 1, 0))  # (a light's index)
         per_sample = BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights)
         need = width * height * spp * per_sample
-        # the keys are traced in blocks of at most this many samples (their Dr.Jit arrays
-        # before the host's copy: within the budget, and within a chunk's size)
+        # the specular chain's keys are traced in blocks of at most this many samples (their
+        # Dr.Jit arrays and the host's copy: within the budget, and within a chunk's size)
         self.block_lanes = int(min(MAX_CHUNK_LANES, max(budget // (2 * per_sample), 1)))
         if need > budget:
             raise BudgetError(

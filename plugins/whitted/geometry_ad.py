@@ -129,7 +129,7 @@ class CameraAD:
         x0, y0, z0 = look_at_frame(start["eye"], start["lookat"], start["up"])
         d = ray.d
         q = mi.Vector2f(dr.dot(d, x0), dr.dot(d, y0)) / dr.dot(d, z0)
-        dr.schedule(q)  # (read by the keys' sums: computed once, with the rays' kernel)
+        dr.schedule(q)  # (read by the camera keys' sums: computed once, with the rays)
         vec = {k: mi.Vector3f(self.values[k]) if k in self.values else mi.Vector3f(start[k])
                for k in ("eye", "lookat", "up")}
         x, y, z = look_at_frame(vec["eye"], vec["lookat"], vec["up"])
