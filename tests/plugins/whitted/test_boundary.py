@@ -89,6 +89,23 @@ def test_a_vertical_edge_moves_by_its_closed_form(mi, spp):
     np.testing.assert_allclose(grad[..., 0], expected, rtol=1e-3, atol=1e-4)
 
 
+@pytest.mark.parametrize("offset, column", [(0.1, 0), (-0.1, None)])
+def test_an_edge_at_the_images_border_moves_by_its_closed_form(mi, offset, column):
+    """The rectangle's right edge ``offset`` pixels inside the image's left border: closer
+    than the first samples (1/8 pixel at k = 4), so only a pair with the ring's sample
+    outside the image straddles it. Inside, moving it right fills column 0 as the edge in
+    the middle of the image fills its column; outside the border, it changes no pixel (the
+    crossing is outside the image: its term goes nowhere)."""
+    edge = -(W / 2 - offset) / PIXELS_PER_UNIT
+    text = FLAT.replace("translate 0.1 0.05 0", f"translate {edge!r} 0.05 0") \
+        + "triangle -3 -3 0  0 -3 0  0 3 0\ntriangle -3 -3 0  0 3 0  -3 3 0\n"
+    grad = forward(mi, text, "translate1.offset", (1, 0, 0), 16)
+    expected = np.zeros((H, W))
+    if column is not None:
+        expected[:, column] = JUMP * PIXELS_PER_UNIT
+    np.testing.assert_allclose(grad[..., 0], expected, rtol=1e-3, atol=1e-4)
+
+
 def test_a_slanted_edge_moves_by_its_closed_form(mi):
     # translate1 is applied before the rotation: the edge moves along its own normal, at
     # unit speed, and crosses all H rows: the image's sum changes by JUMP * (H / cos 25)
@@ -358,8 +375,9 @@ def test_keys_in_chunks_and_blocks_of_rows_give_the_derivative_of_one_block(mi):
 
 def test_a_camera_rays_lattice_point_is_its_pixels_sample(mi):
     """boundary.lattice_index: sample s of pixel (px, py), the render's lane (py W + px) k^2
-    + s, is lattice point (py k + s // k, px k + s % k) (row-major, W k columns), for a
-    chunk starting at any pixel."""
+    + s, is lattice point (py k + s // k, px k + s % k), entry (Y + 1, X + 1) of the
+    lattice's arrays (row-major, W k + 2 columns: the ring around), for a chunk starting at
+    any pixel."""
     from raymitsuba.plugins.whitted import boundary
 
     width, k = 5, 3
@@ -369,4 +387,4 @@ def test_a_camera_rays_lattice_point_is_its_pixels_sample(mi):
     y = (pixel // width) * k + sample // k
     x = (pixel % width) * k + sample % k
     assert np.array_equal(boundary.lattice_index(width, k, first, count).numpy(),
-                          y * width * k + x)
+                          (y + 1) * (width * k + 2) + x + 1)
