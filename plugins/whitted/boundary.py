@@ -359,7 +359,6 @@ class Boundary:
         # the samples' colors as the adjoint pass left them: (first lane, Color3f) per chunk,
         # a lane per camera ray in pixel order (read where a pair's jump needs them)
         self.colors = []
-        self.ring = None  # the ring's (entries, Color3f): see trace_ring
         # the first hits' keys recorded by the adjoint pass (recorder): {name: Dr.Jit array, a
         # lane per lattice point, row-major}
         self.recorded = {}
@@ -399,15 +398,15 @@ class Boundary:
         return first_hit
 
     def trace_ring(self):
-        """Trace the ring's samples (:func:`ring_points`), their keys recorded as the adjoint
-        pass records the image's (:meth:`recorder`) and their colors kept (the last of
-        :attr:`colors`)."""
+        """Trace the ring's samples (:func:`ring_points`): their keys recorded as the adjoint
+        pass records the image's (:meth:`recorder`; their colors, should a jump need them,
+        are traced then: :meth:`colors_at`)."""
         y, x = ring_points(self.width, self.height, self.k)
         index = jit_array(mi.UInt32, (y * self.cols + x).astype(np.uint32))
         with dr.suspend_grad():
-            color = self.tracer.trace(self.scene, self.film_rays(y, x, camera=False),
-                                      self.terms, first_hit=self.first_hit(index)).color
-        self.ring = (y * self.cols + x, color)
+            rays = self.film_rays(y, x, camera=False)
+            si = self.tracer.intersect(self.scene, self.terms.geometry, rays, coherent=True)
+            self.first_hit(index)(si, rays, si.is_valid(), None)
 
     def trace_keys(self):
         """The keys of every lattice sample: the first hits' as the adjoint pass recorded them
@@ -480,13 +479,12 @@ class Boundary:
             if at.any():
                 index = jit_array(mi.UInt32, (lane[at] - first).astype(np.uint32))
                 out[at] = _host(dr.gather(mi.Color3f, color, index))
-        if ring.any():  # (the ring's entries, in ring_points' order)
-            entries, color = self.ring
-            order = np.argsort(entries)
-            index = order[np.searchsorted(entries, (points[0] * self.cols + points[1])[ring],
-                                          sorter=order)]
-            out[ring] = _host(dr.gather(mi.Color3f, color,
-                                        jit_array(mi.UInt32, index.astype(np.uint32))))
+        if ring.any():  # (traced: outside the image, the adjoint pass did not)
+            with dr.suspend_grad():
+                color = self.tracer.trace(self.scene, self.film_rays(points[0][ring],
+                                                                     points[1][ring]),
+                                          self.terms).color
+            out[ring] = _host(color)
         return out
 
     def chain_keys(self, ray, alive, tir):
