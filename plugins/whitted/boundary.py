@@ -348,8 +348,8 @@ class Boundary:
                 f"the boundary terms' keys of {width} x {height} x {spp} samples take "
                 f"{need / GIB:.2g} GB, more than the memory budget ({budget / GIB:.2g} GB): "
                 "use a smaller image or spp, or a larger --memory-budget")
-        # The lattice's keys ((H k, W k) arrays, see trace_keys) and the samples' colors
-        # (collect): set as they are traced. The specular chain's (see chain_step): a list
+        # The lattice's keys ((H k + 2, W k + 2) arrays, the ring's included: see
+        # trace_keys): set as they are read. The specular chain's (see chain_step): a list
         # with an array per bounce traced (none past the last bounce any chain reaches): the
         # shape and face hit, its distance, the checker cell there and whether the bounce
         # was a total internal reflection; lit and what blocks it, per bounce and light
@@ -359,8 +359,8 @@ class Boundary:
         # the samples' colors as the adjoint pass left them: (first lane, Color3f) per chunk,
         # a lane per camera ray in pixel order (read where a pair's jump needs them)
         self.colors = []
-        # the first hits' keys recorded by the adjoint pass (recorder): {name: Dr.Jit array, a
-        # lane per lattice point, row-major}
+        # the first hits' keys recorded by the adjoint pass (recorder) and the ring's
+        # (trace_ring): {name: Dr.Jit array, an entry per lattice point, row-major}
         self.recorded = {}
         self.chain_shape, self.chain_prim, self.chain_t, self.chain_cell = [], [], [], []
         self.chain_tir, self.chain_lit, self.chain_occluder = [], [], []
