@@ -357,9 +357,9 @@ sphere
 def test_keys_in_chunks_and_blocks_of_rows_give_the_derivative_of_one_block(mi):
     """A memory budget that just holds the lattice's keys: the adjoint pass runs in several
     chunks (each records its samples' first-hit keys at their lattice points) and the
-    specular chain's keys are traced in two blocks of rows (a block's arrays within it):
-    the chain's keys (the mirror floor, seen by the lower half only, so the upper block
-    reaches no bounce) are made with the second block, filled in for the first. The
+    specular chain's keys are traced in blocks of rows (three here, a block's arrays within
+    it): the chain's keys (the mirror floor, seen by the lower half only, so the first
+    block reaches no bounce) are made with the second block, filled in for the first. The
     derivative is the one-block lattice's, to the float32 order of the adjoint pass's sums
     over its chunks."""
     from raymitsuba.plugins.whitted import boundary
