@@ -517,9 +517,9 @@ class Boundary:
         shape (NO_HIT: none), face and distance (inf: none); the checker cell; per light,
         whether it lights the point (it faces the light, lies in a spot's cone and the
         shadow ray is free) and what blocks it ((shape, prim); NO_HIT: nothing); and the
-        specular chain's next ray (see chain_step). ``shadows``: per light, (blocker,
-        blocked) of the tracer's own shadow rays from these hits (``Tracer.trace``'s
-        ``first_hit``); None: traced here."""
+        specular chain's next ray (see chain_step). ``shadows``: per light, the blocker of
+        the tracer's own shadow rays from these hits (``Tracer.trace``'s ``first_hit``);
+        None: traced here."""
         keys = {"shape": dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT),
                 "prim": si.prim_index, "t": dr.select(hit, si.t, dr.inf),
                 "cell": self.checker_cell(self.terms, si, hit), "lit": [], "occluder": []}
@@ -535,7 +535,7 @@ class Boundary:
                 blocker = self.scene.ray_intersect_preliminary(shadow, coherent=False,
                                                                active=active)
             else:
-                blocker = shadows[j][0]
+                blocker = shadows[j]
             blocked = active & blocker.is_valid()
             keys["lit"].append(active & ~blocked)
             keys["occluder"].append(mi.Vector2u(

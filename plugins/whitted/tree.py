@@ -149,8 +149,8 @@ class Tracer:
         camera rays' colors are left unevaluated, for a caller that evaluates them with what
         it computes from them (an adjoint pass: with the derivative, in its kernel); a gather
         from them would evaluate them alone. ``first_hit``: optional callable(si, ray, hit,
-        shadows) given the first generation's hits and, per light, its shadow rays' (closest
-        blocker (a PreliminaryIntersection3f), blocked), lazily, as they are traced (the
+        shadows) given the first generation's hits and, per light, its shadow rays' closest
+        blocker (a PreliminaryIntersection3f), lazily, as they are traced (the
         boundary terms' keys, boundary.py, computed in the same kernel)."""
         limits = bailout.path_weight_limits(self.bailout, terms, self.max_depth,
                                             self.max_shadow_crossings)
@@ -262,8 +262,8 @@ class Tracer:
 
     def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None, shadows=None):
         """Product of kt over the surfaces between si.p and the light (0 when blocked).
-        ``shadows``: a list that receives (the shadow ray's closest blocker, blocked), the
-        blocker found by a closest-hit query instead of the any-hit test (the same rays)."""
+        ``shadows``: a list that receives the shadow ray's closest blocker, found by a
+        closest-hit query instead of the any-hit test (the same rays)."""
         ray = self.spawn_ray(si, wi)
         if lifted is not None:  # see lift.py
             terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
@@ -282,7 +282,7 @@ class Tracer:
             else:
                 blocker = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
                 blocked = active & blocker.is_valid()
-                shadows.append((blocker, blocked))
+                shadows.append(blocker)
             if not surfaces.any_transparent:
                 return dr.select(blocked, 0.0, 1.0)  # nothing lets light through
             transmittance, crossed_slots = self.crossings(scene, surfaces, ray, active & blocked,
