@@ -152,6 +152,10 @@ class Whitted(mi.CppADIntegrator):
         for job, weights in self._adjoint_jobs(scene, sensor, spp, width, height):
             # pixels refined later take their value (and their gradient) from a later job
             grad = grad_in if weights is None else grad_in * jit_array(mi.Float, np.repeat(weights, 3))
+            # evaluated now, alone: a chunk's first gather from it would otherwise evaluate it
+            # with whatever that chunk's trace had pending (its recorded keys: a kernel that
+            # traces the chunk's rays, which the backward kernel then traces again)
+            dr.eval(grad)
 
             def visit(start, count, color, job=job, grad=grad):
                 with dr.resume_grad():
