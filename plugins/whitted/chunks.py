@@ -111,19 +111,21 @@ class Chunker:
     def tree_rays(self, ad):
         return max(int(self.budget // (BYTES_PER_RAY_AD if ad else BYTES_PER_RAY)), MIN_CHUNK_RAYS)
 
-    def run(self, job, visit, ad=False, lazy=False, record=None):
+    def run(self, job, visit, ad=False, lazy=False, record=None, queries=None):
         """Trace ``job`` chunk by chunk; for each chunk call ``visit(start, count, color)``
         with the camera rays' colors (one lane per camera ray, pixel-major). ``visit`` is
         called with AD enabled when ``ad`` (and then the tree is sized for its graph);
         ``lazy``: the colors are handed over unevaluated (``Tracer.trace``); ``record``:
-        optional callable(start, count) giving the ``first_hit`` hook of the chunk's trace
-        (``Tracer.trace``)."""
+        optional callable(start, count) giving the ``first_hit`` hook of the chunk's trace;
+        ``queries``: optional callable(start, count, terms) giving its ``queries`` (or None;
+        ``Tracer.trace``, ``terms`` the chunk's scene terms)."""
         max_rays = self.tree_rays(ad)
         self.pixels_total += job.count
         start = 0
         while start < job.count:
             count = min(self._chunk_pixels(job, max_rays), job.count - start)
-            trace, count = self._trace_within(job, start, count, ad, max_rays, lazy, record)
+            trace, count = self._trace_within(job, start, count, ad, max_rays, lazy, record,
+                                              queries)
             rays = sum(trace.rays_per_generation)
             self.rays_traced += rays
             self.rays_per_generation = trace.rays_per_generation
@@ -142,12 +144,14 @@ class Chunker:
         pixels = max(lanes // job.spp, 1)
         return pixels if self.max_pixels is None else min(pixels, self.max_pixels)
 
-    def _trace_within(self, job, start, count, ad, max_rays, lazy=False, record=None):
+    def _trace_within(self, job, start, count, ad, max_rays, lazy=False, record=None,
+                      queries=None):
         """(The trace of the ``count`` pixels from ``start``, or of the first half of them,
         halved again until the tree holds at most ``max_rays`` rays; that count)."""
         while True:
             try:
-                return self._trace(job, start, count, ad, max_rays, lazy, record), count
+                return self._trace(job, start, count, ad, max_rays, lazy, record,
+                                   queries), count
             except TreeTooLarge:
                 if count == 1:
                     raise BudgetError(
@@ -156,17 +160,19 @@ class Chunker:
                         "a --bailout (e.g. 1e-3) or a larger --memory-budget") from None
                 count = max(count // 2, 1)
 
-    def _trace(self, job, start, count, ad, max_rays, lazy=False, record=None):
-        first_hit = None if record is None else record(start, count)
+    def _trace(self, job, start, count, ad, max_rays, lazy=False, record=None, queries=None):
         if ad:  # terms of its own: each chunk's adjoint pass consumes its graph
             with dr.resume_grad():
-                return self.tracer.trace(self.scene, self._rays(job, start, count),
-                                         self.tracer.scene_terms(self.scene), max_rays, lazy,
-                                         first_hit)
-        if self.terms is None:
-            self.terms = self.tracer.scene_terms(self.scene)
-        return self.tracer.trace(self.scene, self._rays(job, start, count), self.terms,
-                                 max_rays, first_hit=first_hit)
+                terms = self.tracer.scene_terms(self.scene)
+        else:
+            if self.terms is None:
+                self.terms = self.tracer.scene_terms(self.scene)
+            terms = self.terms
+        first_hit = None if record is None else record(start, count)
+        asked = None if queries is None else queries(start, count, terms)
+        with dr.resume_grad(when=ad):
+            return self.tracer.trace(self.scene, self._rays(job, start, count), terms,
+                                     max_rays, lazy, first_hit, asked)
 
     def _rays(self, job, start, count):
         return job.rays(self.sensor, start, count, self.tracer.footprint)

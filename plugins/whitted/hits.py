@@ -297,9 +297,11 @@ class HitTable:
                 self.ellipsoid = jit_array(mi.Bool, ellipsoid)
 
     # -- the hits ----------------------------------------------------------------------------
-    def intersect(self, scene, ray, coherent=False):
-        """The surface interaction of each ray (``supported`` must be True)."""
-        pi = scene.ray_intersect_preliminary(ray, coherent=coherent)
+    def intersect(self, scene, ray, coherent=False, pi=None):
+        """The surface interaction of each ray (``supported`` must be True); ``pi``: the
+        rays' closest hits, if already found (else the ray tracer is asked)."""
+        if pi is None:
+            pi = scene.ray_intersect_preliminary(ray, coherent=coherent)
         valid = pi.is_valid()
         shape_id = dr.reinterpret_array(mi.UInt32, pi.shape)
         valid &= shape_id < self.size

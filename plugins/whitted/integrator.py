@@ -43,7 +43,7 @@ import numpy as np
 from raymitsuba import options
 from raymitsuba.options import RenderOptions
 
-from . import antialias, boundary, guards
+from . import antialias, boundary, guards, replay
 from .arrays import jit_array, jit_tensor
 from .camera import box_filter, camera_rays, pixel_means
 from .chunks import Chunker, Job, probe
@@ -86,6 +86,11 @@ class Whitted(mi.CppADIntegrator):
         # The anti-aliasing decisions of the last primal render (antialias.Plan; None: none
         # yet), which the adjoint passes of the same image follow
         self.plan = None
+        # The first generation's ray queries of the last primal render, recorded where an
+        # adjoint pass follows it (replay.Recording; None: none), and how many chunks of the
+        # last adjoint pass replayed it
+        self.recording = None
+        self.replayed = 0
 
     @property
     def max_depth(self):
@@ -121,6 +126,7 @@ class Whitted(mi.CppADIntegrator):
         jobs = self._adjoint_jobs(scene, sensor, spp, width, height)
         chunker = self._adjoint_chunker(scene, sensor)
         edges = self._boundary(scene, sensor, spp, width, height)  # (issue 13) or None
+        queries = self._replay(scene, sensor, spp, width, height)
         for j, (job, _) in enumerate(jobs):
             last_job = j == len(jobs) - 1 and edges is None
 
@@ -138,7 +144,7 @@ class Whitted(mi.CppADIntegrator):
                 grads[job.pixel_index(start, count).numpy()] = grad
 
             chunker.run(job, visit, ad=True,
-                        record=None if edges is None else edges.recorder(job))
+                        record=None if edges is None else edges.recorder(job), queries=queries)
         if edges is not None:
             edges.forward(grads, last=True)
         return jit_tensor(grads.reshape(height, width, 3))
@@ -149,6 +155,7 @@ class Whitted(mi.CppADIntegrator):
         grad_in = mi.Float(dr.detach(grad_in.array if isinstance(grad_in, mi.TensorXf)
                                      else mi.TensorXf(grad_in).array))
         edges = self._boundary(scene, sensor, spp, width, height)  # (issue 13) or None
+        queries = self._replay(scene, sensor, spp, width, height)
         for job, weights in self._adjoint_jobs(scene, sensor, spp, width, height):
             # pixels refined later take their value (and their gradient) from a later job
             grad = grad_in if weights is None else grad_in * jit_array(mi.Float, np.repeat(weights, 3))
@@ -171,7 +178,7 @@ class Whitted(mi.CppADIntegrator):
                     edges.collect(job, start, count, color)
 
             chunker.run(job, visit, ad=True, lazy=True,
-                        record=None if edges is None else edges.recorder(job))
+                        record=None if edges is None else edges.recorder(job), queries=queries)
         if edges is not None:
             edges.backward(grad_in.numpy().reshape(-1, 3))
 
@@ -206,8 +213,14 @@ class Whitted(mi.CppADIntegrator):
                               estimate.rays_per_camera_ray, self.progress, terms,
                               self.chunk_pixels)
             image = np.empty((width * (hi - lo), 3), np.float32) if assemble else None
+            self.recording = None  # (the last render's: replaced once this one is complete)
+            recording = None if rows is not None else \
+                self._recording(scene, sensor, spp, width, height, terms)
             first_pass(chunker, Job(width, height, spp, lo * width, width * (hi - lo)),
-                       assemble_into(image) if assemble else store)
+                       assemble_into(image) if assemble else store,
+                       None if recording is None else
+                       lambda start, count, terms: recording.recorder(start * spp, count * spp))
+            self.recording = recording
             if self.aa > 0:
                 plan = antialias.refine(image.reshape(hi - lo, width, 3), spp, self.aa,
                                         chunker, estimate, height, lo, (top, bottom))
@@ -265,6 +278,38 @@ class Whitted(mi.CppADIntegrator):
         return boundary.Boundary(self.tracer, scene, sensor, width, height, spp,
                                  self.memory_budget, kinds)
 
+    def _recording(self, scene, sensor, spp, width, height, terms):
+        """A replay.Recording for this render's first generation, or None: recorded where an
+        adjoint pass with the boundary terms follows (some key with its gradient enabled
+        moves an edge: the geometry, the camera, a light, eta), the geometry is all in the
+        table, there is no anti-aliasing and it fits in a quarter of the memory budget (see
+        replay.py)."""
+        with dr.resume_grad():  # (a primal render is detached: its keys' flags are read here)
+            moves = bool(boundary.moving_kinds(self.tracer, scene))
+        lanes, lights = width * height * spp, len(terms.direct)
+        if not moves or self.aa > 0 or not terms.geometry.supported \
+                or replay.recording_bytes(lanes, lights) > self.memory_budget / 4:
+            return None
+        return replay.Recording(replay.token(scene, sensor, width, height, spp),
+                                terms.geometry.key)
+
+    def _replay(self, scene, sensor, spp, width, height):
+        """The ``queries`` of an adjoint pass's chunks (``Chunker.run``): the last primal
+        render's recording, replayed in each chunk whose geometry table is that render's,
+        if the camera, lights, size and samples are too; else None (traced)."""
+        recording, self.replayed = self.recording, 0
+        if recording is None or self.aa > 0:
+            return None
+        token = replay.token(scene, sensor, width, height, spp)
+
+        def queries(start, count, terms):
+            if not recording.matches(token, terms.geometry.key):
+                return None
+            self.replayed += 1
+            return recording.replayer(start * spp, count * spp)
+
+        return queries
+
     def _adjoint_chunker(self, scene, sensor):
         return Chunker(self.tracer, scene, sensor, self.memory_budget,
                        max_pixels=self.chunk_pixels)
@@ -290,10 +335,11 @@ def assemble_into(image):
     return store
 
 
-def first_pass(chunker, job, store):
+def first_pass(chunker, job, store, queries=None):
     """Trace ``job`` through ``chunker``, each chunk's box-filtered pixels handed to
-    ``store(first_pixel, values)``."""
+    ``store(first_pixel, values)`` (``queries``: see ``Chunker.run``)."""
     def visit(start, count, color):
         store(start, dr.ravel(pixel_means(color, count, job.spp)).numpy().reshape(-1, 3))
 
-    chunker.run(job, visit)
+    chunker.run(job, visit, queries=queries)
+

@@ -142,7 +142,7 @@ class Tracer:
         self.surfaces = terms.surfaces
         return terms
 
-    def trace(self, scene, ray, terms, max_rays=None, lazy=False, first_hit=None):
+    def trace(self, scene, ray, terms, max_rays=None, lazy=False, first_hit=None, queries=None):
         """The :class:`Trace` of each ray of ``ray`` (one lane per ray) through its whole
         tree, with the scene's ``terms`` (from :meth:`scene_terms`). ``max_rays``: a tree of
         more rays than this raises :class:`TreeTooLarge` (None: no limit). ``lazy``: the
@@ -151,7 +151,12 @@ class Tracer:
         from them would evaluate them alone. ``first_hit``: optional callable(si, ray, hit,
         shadows) given the first generation's hits and, per light, its shadow rays' closest
         blocker (a PreliminaryIntersection3f), lazily, as they are traced (the
-        boundary terms' keys, boundary.py, computed in the same kernel)."""
+        boundary terms' keys, boundary.py, computed in the same kernel). ``queries``:
+        optional: who answers the first generation's ray queries (``camera(scene, ray,
+        coherent)``: each ray's closest hit; ``shadow(scene, light, ray, active)``: the
+        closest blocker of light number ``light``'s shadow rays), recorded or replayed
+        (replay.py); None: the ray tracer, and an any-hit test for the shadow rays where
+        no ``first_hit`` wants their blockers."""
         limits = bailout.path_weight_limits(self.bailout, terms, self.max_depth,
                                             self.max_shadow_crossings)
         path_weight = None if limits is None else mi.Float(1.0)
@@ -163,7 +168,7 @@ class Tracer:
             # (no kr or kt > 0 in the scene: no ray has a child, the tree is one generation)
             last = depth == self.max_depth or not terms.surfaces.any_specular
             step = self.step(scene, terms, ray, depth, not last,
-                             first_hit if depth == 0 else None)
+                             *((first_hit, queries) if depth == 0 else ()))
             generation = Generation(step.local)
             generations.append(generation)
             if last:
@@ -183,10 +188,10 @@ class Tracer:
                 dr.eval(color)  # once for all three channels: the next step gathers from each
         return Trace(color, rays_per_generation)
 
-    def step(self, scene, terms, ray, depth, children, first_hit=None):
+    def step(self, scene, terms, ray, depth, children, first_hit=None, queries=None):
         """Intersect and shade ``ray``; with ``children``, also the children's weights and rays
-        (``first_hit``: see :meth:`trace`)."""
-        si = self.intersect(scene, terms.geometry, ray, coherent=(depth == 0))
+        (``first_hit``, ``queries``: see :meth:`trace`)."""
+        si = self.intersect(scene, terms.geometry, ray, coherent=(depth == 0), queries=queries)
         hit = si.is_valid()
         surfaces = terms.surfaces
         slot = surfaces.slot(si.shape, si.prim_index, hit)
@@ -196,7 +201,7 @@ class Tracer:
             duv = terms.geometry.uv_footprint(si, ray, hit)
         color = surfaces.base_color(si, slot, hit, duv)
         shadows = None if first_hit is None else []
-        local = self.shade(scene, terms, si, slot, color, ray, shadows)
+        local = self.shade(scene, terms, si, slot, color, ray, shadows, queries)
         local = dr.select(hit, local, terms.background)
         if first_hit is not None:
             first_hit(si, ray, hit, shadows)
@@ -224,12 +229,14 @@ class Tracer:
         return mi.Ray3f(dr.fma(mag, dr.detach(si.n), si.p), d, dr.largest(mi.Float), si.time,
                         si.wavelengths)
 
-    def intersect(self, scene, geometry, ray, coherent):
+    def intersect(self, scene, geometry, ray, coherent, queries=None):
         """The surface interaction of each ray: by lookup in the geometry table (see
         hits.py), or, for a scene with shapes the table does not know, through Mitsuba's
-        dispatch (the shapes' own parameters detached: they are not the renderer's)."""
+        dispatch (the shapes' own parameters detached: they are not the renderer's).
+        ``queries``: who finds the closest hits (see :meth:`trace`; the table's scenes only)."""
         if geometry.supported:
-            return geometry.intersect(scene, ray, coherent)
+            pi = None if queries is None else queries.camera(scene, ray, coherent)
+            return geometry.intersect(scene, ray, coherent, pi)
         return scene.ray_intersect(ray, ray_flags=mi.RayFlags.AllNonDifferentiable,
                                    coherent=coherent)
 
@@ -238,9 +245,10 @@ class Tracer:
         n = si.sh_frame.n
         return dr.select(dr.dot(n, ray.d) > 0, -n, n)
 
-    def shade(self, scene, terms, si, slot, color, ray, shadows=None):
+    def shade(self, scene, terms, si, slot, color, ray, shadows=None, queries=None):
         """L_local at each hit: ambient term plus each light's shadowed Phong term
-        (``shadows``: a list that receives each light's shadow blocker, see transmittance)."""
+        (``shadows``: a list that receives each light's shadow blocker, ``queries``: who
+        finds it; see transmittance)."""
         hit = si.is_valid()
         surfaces, lights = terms.surfaces, terms.direct
         result = terms.ambient * surfaces.get("ambient_mix", slot, hit) * color
@@ -251,19 +259,23 @@ class Tracer:
         exponent = surfaces.get("phong_coeff", slot, hit)
         n, v = self.facing_normal(si, ray), -ray.d
         lifted = lifted_point(terms.geometry, si, hit, self.offset_scale)  # see lift.py
-        for light in lights:
+        for j, light in enumerate(lights):
             wi, dist, intensity = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
+            blocker = None if queries is None else \
+                (lambda ray, active, j=j: queries.shadow(scene, j, ray, active))
             transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, lifted,
-                                               shadows)
+                                               shadows, blocker)
             phong = phong_local(n, v, wi, color, kd, ks, exponent)
             result += dr.select(active, intensity * phong * transmittance, 0.0)
         return result
 
-    def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None, shadows=None):
+    def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None, shadows=None,
+                      blocker=None):
         """Product of kt over the surfaces between si.p and the light (0 when blocked).
         ``shadows``: a list that receives the shadow ray's closest blocker, found by a
-        closest-hit query instead of the any-hit test (the same rays)."""
+        closest-hit query instead of the any-hit test (the same rays); ``blocker``:
+        optional callable(ray, active) that finds it (a ``queries``' shadow, see trace)."""
         ray = self.spawn_ray(si, wi)
         if lifted is not None:  # see lift.py
             terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
@@ -277,12 +289,14 @@ class Tracer:
         with dr.suspend_grad():
             # A cheap any-hit test first: most shadow rays cross nothing, and then the
             # transmittance is exactly 1. Only the others walk their crossings.
-            if shadows is None:
+            if shadows is None and blocker is None:
                 blocked = scene.ray_test(ray, active)
             else:
-                blocker = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
+                blocker = scene.ray_intersect_preliminary(ray, coherent=False, active=active) \
+                    if blocker is None else blocker(ray, active)
                 blocked = active & blocker.is_valid()
-                shadows.append(blocker)
+                if shadows is not None:
+                    shadows.append(blocker)
             if not surfaces.any_transparent:
                 return dr.select(blocked, 0.0, 1.0)  # nothing lets light through
             transmittance, crossed_slots = self.crossings(scene, surfaces, ray, active & blocked,

@@ -1,0 +1,181 @@
+"""The first generation's ray queries of a primal render, replayed by the adjoint passes after it.
+
+A gradient step renders the image (detached: ``Whitted.render_array``) and then traces it
+again with AD enabled (``render_backward`` / ``render_forward``): the same camera rays
+against the same geometry, with the same lights. The ray tracer's answers to the first
+generation's two queries are then the same too:
+
+* each camera ray's closest hit (its PreliminaryIntersection3f: t, the primitive's
+  barycentric uv, the shape or none, the primitive);
+* per light, its shadow ray's closest blocker (the shape or none, the primitive; its
+  distance is not kept: nothing reads it).
+
+Where a key with its gradient enabled moves an edge (``boundary.moving_kinds``: the
+geometry, the camera, a light, eta; an adjoint pass with the boundary terms follows, whose
+keys need the *closest* blocker), the primal render records these answers
+(:class:`Recording`, :meth:`Recording.recorder`) and the adjoint passes read them back
+(:meth:`Recording.replayer`) instead of asking the ray tracer again: everything else is
+computed as before, from the same values, so the derivatives do not change by a bit; the
+adjoint's kernels lose their two traversals (at 256 x 192, k = 4: the adjoint's kernels
+34 -> 16 ms; the primal's, which asks for the closest blocker instead of any, 2 ms more).
+
+**What the answers depend on** (:func:`token`): the camera rays (the sensor's values, the
+image's size, the samples per pixel), the shapes (the geometry table's key: its shapes
+and their buffers, ``hits.HitTable``) and the lights' positions and directions (the shadow
+rays). A recording is replayed only by a pass whose token equals the primal's, compared
+when the pass's geometry table is up to date (each chunk, see ``Chunker.run``): a pass
+after any of these changed traces as before. Materials and colors may change between the
+two: no answer depends on them.
+
+The answers are outputs of each primal chunk's kernel, written in order as its colors are
+(scattered to their lanes instead, they cost the primal render 5.5 ms rather than 2), joined into one array
+each at the first replay when the render took several chunks.
+
+**Memory**: :data:`CAMERA_BYTES` per camera ray and :data:`SHADOW_BYTES` per light and
+camera ray, kept until the next primal render (twice that while the chunks are joined); a
+render whose recording would take more than a quarter of the integrator's memory budget
+records nothing (its adjoint passes trace; the boundary terms' keys take more than 4 times
+a recording, so a gradient step that has them always records). Only renders of the whole
+image without anti-aliasing record (an adjoint pass with ``--aa`` traces its refined
+pixels' own samples).
+"""
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+CAMERA_BYTES = 20  # t, uv (two floats), shape (NO_SHAPE: no hit), primitive: 4 bytes each
+SHADOW_BYTES = 8  # shape (NO_SHAPE: not blocked), primitive: 4 bytes each
+NO_SHAPE = 0xFFFFFFFF  # the recorded shape of a ray that hit nothing (a shape's id is smaller)
+
+
+def recording_bytes(lanes, lights):
+    """Bytes a recording of ``lanes`` camera rays and ``lights`` direct lights takes."""
+    return lanes * (CAMERA_BYTES + lights * SHADOW_BYTES)
+
+
+def token(scene, sensor, width, height, spp):
+    """What the first generation's answers depend on, but for the geometry (compared apart,
+    see the module docstring): the image's size and samples, the sensor's values, the
+    lights' positions and directions (as bytes)."""
+    values = [width, height, spp, _values(mi.traverse(sensor))]
+    for emitter in scene.emitters():
+        values.append(tuple(np.asarray(getattr(emitter, name)).tobytes()
+                            for name in ("position", "direction") if hasattr(emitter, name)))
+    return tuple(values)
+
+
+def _values(params):
+    out = []
+    for key in sorted(params.keys()):
+        value = params[key]
+        if isinstance(value, mi.Transform4f):
+            value = value.matrix
+        out.append((key, np.asarray(value).tobytes()))
+    return tuple(out)
+
+
+class Recording:
+    """The first generation's answers of a render's camera rays (every pixel's samples,
+    pixel-major, so that a chunk's lanes are a range), recorded by its chunks in order;
+    ``token``: :func:`token` of that render, ``geometry``: its geometry table's key."""
+
+    def __init__(self, token, geometry):
+        self.token, self.geometry = token, geometry
+        # per chunk, by its first lane: (its lanes, the camera's fields (t, u, v, shape,
+        # prim), per light its shadows' (shape, prim)); a chunk traced again in halves (too
+        # large a tree, see chunks.py) is replaced by its first half
+        self.chunks = {}
+        self.joined = None  # the chunks' fields, one array each (see answers)
+
+    def matches(self, token, geometry):
+        """Whether a pass of ``token`` over a geometry table of key ``geometry`` may replay
+        this recording."""
+        return token == self.token and geometry == self.geometry
+
+    def recorder(self, first, count):
+        """The queries of a chunk's ``count`` lanes from lane ``first``, asked of the ray
+        tracer and recorded (a ``Tracer.trace`` ``queries``)."""
+        return _Recorder(self.chunks, first, count)
+
+    def replayer(self, first, count):
+        """The queries of the ``count`` lanes from lane ``first``, read back."""
+        lane = dr.arange(mi.UInt32, count) + dr.opaque(mi.UInt32, first)
+        return _Replayer(self.answers(), lane)
+
+    def answers(self):
+        """(The camera's fields, per light its fields) of every lane (see __init__)."""
+        if self.joined is None:
+            chunks = [self.chunks[first] for first in sorted(self.chunks)]
+            camera = [c for _, c, _ in chunks]
+            shadows = [[s[j] for j in sorted(s)] for _, _, s in chunks]
+            if len(chunks) == 1:
+                self.joined = camera[0], shadows[0]
+            else:
+                self.joined = (_joined(camera), [_joined(light) for light in zip(*shadows)])
+                dr.eval(self.joined)
+            self.chunks = {}
+        return self.joined
+
+
+def _joined(fields):
+    """Each field of a sequence of tuples of fields, concatenated."""
+    return tuple(dr.concat(list(parts)) for parts in zip(*fields))
+
+
+class _Recorder:
+    """The first generation's queries (``Tracer.trace``'s ``queries``), traced, their answers
+    kept as outputs of the chunk's kernel (scheduled: evaluated with its colors)."""
+
+    def __init__(self, chunks, first, count):
+        self.chunks, self.first, self.count = chunks, first, count
+        self.shadows = {}  # light: its fields
+
+    def camera(self, scene, ray, coherent):
+        pi = scene.ray_intersect_preliminary(ray, coherent=coherent)
+        fields = (pi.t, pi.prim_uv.x, pi.prim_uv.y, _shape(pi), mi.UInt32(pi.prim_index))
+        dr.schedule(fields)
+        self.chunks[self.first] = (self.count, fields, self.shadows)
+        return pi
+
+    def shadow(self, scene, light, ray, active):
+        blocker = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
+        self.shadows[light] = fields = (_shape(blocker), mi.UInt32(blocker.prim_index))
+        dr.schedule(fields)
+        return blocker
+
+
+def _shape(pi):
+    """The shape of each hit as a UInt32 (NO_SHAPE: none)."""
+    return dr.select(pi.is_valid(), dr.reinterpret_array(mi.UInt32, pi.shape), NO_SHAPE)
+
+
+class _Replayer:
+    """The first generation's queries, their answers read back (``answers``: see
+    Recording.answers) at lanes ``lane``."""
+
+    def __init__(self, answers, lane):
+        self.answers, self.lane = answers, lane
+
+    def read(self, fields):
+        return [dr.gather(type(f), f, self.lane) for f in fields]
+
+    def camera(self, scene, ray, coherent):
+        t, u, v, shape, prim = self.read(self.answers[0])
+        return _intersection(t, mi.Point2f(u, v), shape, prim)
+
+    def shadow(self, scene, light, ray, active):
+        shape, prim = self.read(self.answers[1][light])
+        # (t: not kept, any finite value where blocked; a blocker's distance has no reader)
+        return _intersection(dr.select(shape != NO_SHAPE, 0.0, dr.inf), mi.Point2f(0.0),
+                             shape, prim)
+
+
+def _intersection(t, uv, shape, prim):
+    """A PreliminaryIntersection3f of these fields, as the ray tracer gave them (shape
+    NO_SHAPE: no hit, a null shape)."""
+    pi = dr.zeros(mi.PreliminaryIntersection3f, dr.width(t))
+    valid = shape != NO_SHAPE
+    pi.t, pi.prim_uv, pi.prim_index, pi.valid = t, uv, prim, valid
+    pi.shape = dr.reinterpret_array(mi.ShapePtr, dr.select(valid, shape, 0))
+    return pi
