@@ -45,12 +45,27 @@ from .protocol import SurfaceSet
 MESH, SMOOTH, TEXCOORDS, SPHERE = 1, 2, 4, 8  # bits of a shape's kind (0: not in the table)
 
 
+# Shape ids read by shape_ids, by the Dr.Jit index of the scene's array of shapes (which
+# names it while that array lives: each entry keeps its array), the latest few
+_IDS_READ = {}
+IDS_KEPT = 8
+
+
 def shape_ids(scene):
     """The registry ids of the scene's shapes (one vectorized read), in ``scene.shapes()``
-    order: they name the shapes while the scene lives."""
+    order: they name the shapes while the scene lives. A scene's shapes do not change:
+    they are read once (a read waits for every kernel queued, so that the adjoint pass's
+    next chunk would otherwise wait for the last one's kernel before building its own)."""
     if not scene.shapes():
         return np.zeros(0, np.uint32)
-    return dr.reinterpret_array(mi.UInt32, scene.shapes_dr()).numpy()
+    shapes = scene.shapes_dr()
+    read = _IDS_READ.get(shapes.index)
+    if read is None:
+        read = _IDS_READ[shapes.index] = \
+            (shapes, dr.reinterpret_array(mi.UInt32, shapes).numpy())
+        while len(_IDS_READ) > IDS_KEPT:
+            del _IDS_READ[next(iter(_IDS_READ))]
+    return read[1]
 
 
 def sphere_key(shape):
