@@ -333,7 +333,7 @@ class Boundary:
         with dr.suspend_grad():
             self.terms = tracer.scene_terms(scene)  # detached: the keys, the one-sided colors
         self.lights = self.terms.direct
-        self.kind_of = self.terms.geometry.kind.numpy()  # HitTable kind bits by shape id
+        self.kind_of = self.terms.geometry.kind_host  # HitTable kind bits by shape id
         # the kinds of pairs formed, as a table by kind + 1 (-1: no pair)
         self.formed = np.zeros(KINDS + 1, bool)
         self.formed[np.array(sorted(kinds), int) + 1] = True

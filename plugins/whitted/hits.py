@@ -193,6 +193,7 @@ class HitTable:
         self.moving = False
         # By shape registry id (see build)
         self.kind = None  # UInt32: the bits MESH, SMOOTH, TEXCOORDS, SPHERE (0: not in the table)
+        self.kind_host = None  # the same, numpy
         self.first = None  # UInt32: the shape's first face (meshes) or row (spheres)
         self.size = None  # UInt32 (opaque): the tables' length, one past the largest id
         # The meshes, concatenated
@@ -282,6 +283,7 @@ class HitTable:
             face_count += len(mesh_faces) // 3
             vertex_count += count
         self.kind, self.first = jit_array(mi.UInt32, kind), jit_array(mi.UInt32, first)
+        self.kind_host = kind  # (the same, on the host: read without waiting for kernels)
         # The table's length as data, not as a constant of the kernels (it grows with the scene).
         self.size = dr.opaque(mi.UInt32, size)
         self.has_meshes, self.has_spheres = bool(faces), spheres.count > 0

@@ -117,8 +117,16 @@ class Whitted(mi.CppADIntegrator):
 
     # -- mi.Integrator interface ---------------------------------------------------------------
     def render(self, scene, sensor=0, seed=0, spp=0, develop=True, evaluate=True):
-        image = self.render_array(scene, sensor, spp)
-        return jit_tensor(image)  # (a private, aligned copy: see arrays.py)
+        if self.aa > 0:  # (refined on the host)
+            return jit_tensor(self.render_array(scene, sensor, spp))  # (aligned: arrays.py)
+        # Kept on the device, each chunk's pixels evaluated there without waiting for them:
+        # what follows (a loss, an adjoint pass's graph) is built while the kernels run.
+        chunks = []
+        self.render_array(scene, sensor, spp, store=lambda first, values: chunks.append(values),
+                          on_device=True)
+        _, _, width, height = self._setup(scene, sensor, spp)
+        image = chunks[0] if len(chunks) == 1 else dr.concat(chunks)
+        return mi.TensorXf(image, shape=(height, width, 3))
 
     def render_forward(self, scene, params, sensor=0, seed=0, spp=0):
         sensor, spp, width, height = self._setup(scene, sensor, spp)
@@ -183,12 +191,14 @@ class Whitted(mi.CppADIntegrator):
             edges.backward(grad_in.numpy().reshape(-1, 3))
 
     # -- the image -----------------------------------------------------------------------------
-    def render_array(self, scene, sensor=0, spp=0, store=None, rows=None):
+    def render_array(self, scene, sensor=0, spp=0, store=None, rows=None, on_device=False):
         """The image as a numpy float32 (H, W, 3) array, traced chunk by chunk (detached).
 
         ``store``: optional callable(first_pixel, values) that receives each chunk's pixels
         (float32, (count, 3)) instead: then nothing is assembled and None is returned
-        (not with anti-aliasing, which needs the whole first pass).
+        (not with anti-aliasing, which needs the whole first pass). ``on_device``: the
+        ``store`` receives them as a Dr.Jit Float (count 3 values, pixel-major), their
+        kernel launched, not waited for (not with anti-aliasing).
 
         ``rows``: optional (top, bottom): only the image's rows top .. bottom - 1, a band
         of (bottom - top, W, 3), the same values, bit for bit, as those rows of the whole
@@ -217,7 +227,8 @@ class Whitted(mi.CppADIntegrator):
             recording = None if rows is not None else \
                 self._recording(scene, sensor, spp, width, height, terms)
             first_pass(chunker, Job(width, height, spp, lo * width, width * (hi - lo)),
-                       assemble_into(image) if assemble else store,
+                       assemble_into(image) if assemble else
+                       store if on_device else on_host(store),
                        None if recording is None else
                        lambda start, count, terms: recording.recorder(start * spp, count * spp))
             self.recording = recording
@@ -327,19 +338,29 @@ class Whitted(mi.CppADIntegrator):
         return self.plan.adjoint_jobs()
 
 
-def assemble_into(image):
-    """A ``store`` that writes each chunk's pixels into ``image`` ((H * W, 3))."""
-    def store(first, values):
-        image[first:first + len(values)] = values
+def on_host(store):
+    """A first pass's ``store`` of the chunks' pixels as a numpy (count, 3) array, from
+    ``store(first, values)`` of such arrays."""
+    def to_host(first, values):
+        store(first, values.numpy().reshape(-1, 3))
 
-    return store
+    return to_host
+
+
+def assemble_into(image):
+    """A first pass's ``store`` that writes each chunk's pixels into ``image`` ((H * W, 3))."""
+    return on_host(lambda first, values: image.__setitem__(slice(first, first + len(values)),
+                                                         values))
 
 
 def first_pass(chunker, job, store, queries=None):
-    """Trace ``job`` through ``chunker``, each chunk's box-filtered pixels handed to
-    ``store(first_pixel, values)`` (``queries``: see ``Chunker.run``)."""
+    """Trace ``job`` through ``chunker``, each chunk's box-filtered pixels (a Float of count
+    3 values, evaluated) handed to ``store(first_pixel, values)`` (``queries``: see
+    ``Chunker.run``)."""
     def visit(start, count, color):
-        store(start, dr.ravel(pixel_means(color, count, job.spp)).numpy().reshape(-1, 3))
+        values = dr.ravel(pixel_means(color, count, job.spp))
+        dr.eval(values)  # (launched, not waited for: the chunk's tree is freed)
+        store(start, values)
 
     chunker.run(job, visit, queries=queries)
 

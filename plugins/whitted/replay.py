@@ -56,23 +56,29 @@ def recording_bytes(lanes, lights):
 
 def token(scene, sensor, width, height, spp):
     """What the first generation's answers depend on, but for the geometry (compared apart,
-    see the module docstring): the image's size and samples, the sensor's values, the
-    lights' positions and directions (as bytes)."""
-    values = [width, height, spp, _values(mi.traverse(sensor))]
-    for emitter in scene.emitters():
-        values.append(tuple(np.asarray(getattr(emitter, name)).tobytes()
-                            for name in ("position", "direction") if hasattr(emitter, name)))
-    return tuple(values)
+    see the module docstring): (a comparable key, the Dr.Jit values it names). The image's
+    size and samples; the sensor's values and the lights' positions and directions, each
+    Dr.Jit value by its variable's index (no read: a read would wait for the kernels
+    queued), host values by their bytes. An index names its variable while the variable
+    lives: a recording keeps its token's values."""
+    kept = []
 
-
-def _values(params):
-    out = []
-    for key in sorted(params.keys()):
-        value = params[key]
+    def leaves(value):
         if isinstance(value, mi.Transform4f):
             value = value.matrix
-        out.append((key, np.asarray(value).tobytes()))
-    return tuple(out)
+        if dr.is_array_v(value) and dr.depth_v(value) > 1:
+            return tuple(leaves(component) for component in value)
+        if dr.is_jit_v(value):
+            kept.append(value)
+            return value.index
+        return np.asarray(value).tobytes()
+
+    params = mi.traverse(sensor)
+    key = [width, height, spp, tuple((name, leaves(params[name])) for name in sorted(params.keys()))]
+    for emitter in scene.emitters():
+        key.append(tuple(leaves(getattr(emitter, name))
+                         for name in ("position", "direction") if hasattr(emitter, name)))
+    return tuple(key), kept
 
 
 class Recording:
@@ -81,7 +87,7 @@ class Recording:
     ``token``: :func:`token` of that render, ``geometry``: its geometry table's key."""
 
     def __init__(self, token, geometry):
-        self.token, self.geometry = token, geometry
+        (self.token, self.kept), self.geometry = token, geometry
         # per chunk, by its first lane: (its lanes, the camera's fields (t, u, v, shape,
         # prim), per light its shadows' (shape, prim)); a chunk traced again in halves (too
         # large a tree, see chunks.py) is replaced by its first half
@@ -91,7 +97,7 @@ class Recording:
     def matches(self, token, geometry):
         """Whether a pass of ``token`` over a geometry table of key ``geometry`` may replay
         this recording."""
-        return token == self.token and geometry == self.geometry
+        return token[0] == self.token and geometry == self.geometry
 
     def recorder(self, first, count):
         """The queries of a chunk's ``count`` lanes from lane ``first``, asked of the ray

@@ -157,8 +157,11 @@ class Tracer:
         closest blocker of light number ``light``'s shadow rays), recorded or replayed
         (replay.py); None: the ray tracer, and an any-hit test for the shadow rays where
         no ``first_hit`` wants their blockers."""
-        limits = bailout.path_weight_limits(self.bailout, terms, self.max_depth,
-                                            self.max_shadow_crossings)
+        # (no kr or kt > 0: one generation, no child to bail out; the bound reads the lights'
+        # colors on the host, which waits for every kernel queued)
+        limits = None if not terms.surfaces.any_specular else \
+            bailout.path_weight_limits(self.bailout, terms, self.max_depth,
+                                       self.max_shadow_crossings)
         path_weight = None if limits is None else mi.Float(1.0)
         generations, rays_per_generation = [], []
         if self.geometry_ad is not None:  # hook (issue 13): the camera keys' derivatives
