@@ -214,7 +214,9 @@ class Whitted(mi.CppADIntegrator):
             # the rows traced by the first pass: the band, with its neighbours' for --aa
             lo, hi = (max(top - 1, 0), min(bottom + 1, height)) if self.aa > 0 else (top, bottom)
             assemble = store is None or self.aa > 0
-            guards.check_image(width, hi - lo, self.memory_budget, assemble, self.aa > 0)
+            # (on the device, the image is assembled there: the same memory)
+            guards.check_image(width, hi - lo, self.memory_budget, assemble or on_device,
+                               self.aa > 0)
             terms = self.tracer.scene_terms(scene)
             estimate = self._estimate(scene, sensor, width, height, spp, terms)
             self.stats = RenderStats(estimate)  # (its estimate is read even if refused)

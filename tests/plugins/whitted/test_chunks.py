@@ -182,6 +182,8 @@ def test_the_output_buffer_guard(mi, monkeypatch):
     monkeypatch.setattr(guards, "available_memory", lambda: 40_000)
     with pytest.raises(guards.BudgetError, match="64 x 64 float image needs"):
         loaded.integrator.render_array(loaded.scene)
+    with pytest.raises(guards.BudgetError, match="64 x 64 float image needs"):
+        loaded.integrator.render(loaded.scene)  # (assembled on the device: refused alike)
     # chunk by chunk into the caller's buffer: nothing to assemble, nothing refused
     stored = []
     assert loaded.integrator.render_array(loaded.scene,
@@ -190,6 +192,20 @@ def test_the_output_buffer_guard(mi, monkeypatch):
     with pytest.raises(guards.BudgetError, match="2\\^32"):
         guards.check_image(65536, 32768, loaded.integrator.memory_budget)
     del raymitsuba
+
+
+@pytest.mark.parametrize("pixels", [None, 7])
+def test_the_image_kept_on_the_device_is_the_one_assembled_on_the_host(mi, pixels):
+    """``render`` (mi.render's) keeps the chunks' pixels on the device, joined there when
+    there are several; ``render_array`` assembles them on the host: the same bits."""
+    import raymitsuba
+
+    loaded = tg.load("glass", size=12, spp=4)
+    loaded.integrator.chunk_pixels = pixels
+    on_device = raymitsuba.render(loaded)
+    chunks = loaded.integrator.chunks
+    assert chunks == (1 if pixels is None else 21)  # 144 pixels, 7 a chunk
+    assert np.array_equal(on_device.numpy(), loaded.integrator.render_array(loaded.scene))
 
 
 @pytest.mark.parametrize("aa", [None, 0.02])
