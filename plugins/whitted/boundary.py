@@ -590,75 +590,20 @@ class Boundary:
     # -- the pairs -------------------------------------------------------------------------------
     def pairs(self):
         """Every lattice pair with an edge between: a dict of numpy arrays (one entry per
-        pair): L, R, O as (Y, X), the kind, the light (shadows), and what g is made of."""
-        kind_of = self.kind_of
+        pair): L, R, O as (Y, X), the kind, the light (shadows), and what g is made of.
+
+        The pairs of each axis are classified among its candidates only: the pairs whose
+        samples differ in some key (a few percent of the lattice; every other pair has no
+        edge between), found by one pass of comparisons over the lattice."""
         found = []
         rows, cols = self.t.shape
-        ended = [bool(np.all(shape == STOP)) for shape in self.chain_shape]
-        ended += [True] * (CHAIN_DEPTH - len(ended))  # (bounces no chain reached)
+        bounces = self.chain_bounces()
         for axis in (1, 0):  # rows (X, X + 1), then columns (Y, Y + 1)
-            # every pair at once, as two views of the lattice: L (the first sample of each
-            # pair) and R (the second)
-            left = np.s_[:, :-1] if axis == 1 else np.s_[:-1, :]
-            right = np.s_[:, 1:] if axis == 1 else np.s_[1:, :]
-            visibility = self.surface_differs(left, right, kind_of)
-            kind = np.full(visibility.shape, -1, np.int8)  # (small types: a pass per array)
-            light = np.zeros(visibility.shape, self.light_type)
-            kind[visibility] = VISIBILITY
-            same = ~visibility & (self.shape[left] != NO_HIT)
-            # On one surface, a pair across one edge only: where a shadow edge and a checker
-            # line (or two shadow edges) pass between the same two samples, the jump f_L - f_R
-            # is the sum of both and belongs to neither alone (such pairs are left out: a
-            # share of the crossings that falls as 1/k).
-            edges = np.zeros(visibility.shape, np.int16)
-            for j in range(len(self.lights)):
-                edge = same & (self.lit[j][left] != self.lit[j][right])
-                edges += edge
-                kind[edge], light[edge] = SHADOW, j
-            lines = crossed(self.cell, left, right)  # u and v lines crossed
-            checker = same & (lines > 0)
-            edges += lines * checker
-            kind[checker] = CHECKER
-            kind[same & (edges > 1)] = -1
-            # Seen along the specular chain (mirrors, glass): the first bounce whose key
-            # differs, if the first hits are alike: total internal reflection switching at
-            # the surface the bounce leaves, else a visibility edge or one checker line (a
-            # pair across two edges at that bounce is left out).
-            depth = np.full(visibility.shape, -1, np.int8)
-            pending = same & (edges == 0)
-            for d in range(CHAIN_DEPTH):
-                if not pending.any() or ended[d]:  # (past every chain's end: no pair)
-                    break
-                cs_l, cs_r = self.chain_shape[d][left], self.chain_shape[d][right]
-                tir = self.chain_tir[d][left] != self.chain_tir[d][right]
-                shape_differs = cs_l != cs_r
-                lines = crossed(self.chain_cell[d], left, right)
-                shadows = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
-                for j in range(len(self.lights)):
-                    lit = self.chain_lit[d * len(self.lights) + j]
-                    edge = ~shape_differs & (lit[left] != lit[right])
-                    shadows += edge
-                    light[pending & edge & ~tir] = j
-                here = pending & (shape_differs | (lines > 0) | tir | (shadows > 0))
-                ok = here & ~tir & ((shape_differs & (lines >= 0))
-                                    | ((lines + shadows) == 1))
-                ok &= (cs_l != STOP) & (cs_r != STOP)
-                kind[ok & shape_differs] = CHAIN_VISIBILITY
-                kind[ok & ~shape_differs & (lines == 1)] = CHAIN_CHECKER
-                kind[ok & ~shape_differs & (shadows == 1)] = CHAIN_SHADOW
-                # total internal reflection switching at the bounce's surface: what the two
-                # chains meet after it differs because of it
-                switch = here & tir
-                kind[switch] = CHAIN_TIR
-                depth[ok | switch] = d
-                pending &= ~here
+            ly, lx = self.candidates(axis, bounces)
+            L, R = (ly, lx), (ly + (axis == 0), lx + (axis == 1))
+            kind, light, depth = self.classify(L, R, bounces)
             keep = self.kept(kind)
-            # (none along the ring: a pair has a sample of the image)
-            if axis == 1:
-                keep[0], keep[-1] = False, False
-            else:
-                keep[:, 0], keep[:, -1] = False, False
-            ly, lx = nonzero(keep)  # (row-major: the order of the lattice)
+            ly, lx = ly[keep], lx[keep]
             ry, rx = ly + (axis == 0), lx + (axis == 1)
             # the neighbours of L and R across the axis, either side (one side at the border):
             # they give the edge's normal at the crossing (centred differences)
@@ -677,8 +622,90 @@ class Boundary:
                        if name in POINTS else np.concatenate([f[name] for f in found]))
                 for name in found[0]}
 
+    def chain_bounces(self):
+        """How many bounces of the specular chain some chain reaches: those before the first
+        that none does (0: no mirror, no glass)."""
+        ended = [bool(np.all(shape == STOP)) for shape in self.chain_shape]
+        ended += [True] * (CHAIN_DEPTH - len(ended))  # (bounces no chain reached)
+        return ended.index(True)
+
+    def candidates(self, axis, bounces):
+        """(Y, X) of L of the pairs along ``axis`` (1: rows, 0: columns) whose samples differ
+        in some key (the first hit's shape, face, light and checker cell, and those of the
+        chain's first ``bounces`` bounces), row-major: the lattice's order. None along the
+        ring: a pair has a sample of the image."""
+        # two views of the lattice: L (the first sample of each pair) and R (the second)
+        left = np.s_[1:-1, :-1] if axis == 1 else np.s_[:-1, 1:-1]
+        right = np.s_[1:-1, 1:] if axis == 1 else np.s_[1:, 1:-1]
+        planes = [self.shape, self.prim, *self.lit, self.cell[0], self.cell[1]]
+        for d in range(bounces):
+            planes += [self.chain_shape[d], self.chain_tir[d], self.chain_cell[d][0],
+                       self.chain_cell[d][1]]
+            planes += self.chain_lit[d * len(self.lights):(d + 1) * len(self.lights)]
+        differs = planes[0][left] != planes[0][right]
+        for plane in planes[1:]:
+            differs |= plane[left] != plane[right]
+        ly, lx = nonzero(differs)
+        return (ly + 1, lx) if axis == 1 else (ly, lx + 1)
+
+    def classify(self, L, R, bounces):
+        """(kind (int8; -1: none, or left out), light, depth) of the pairs (L, R) (numpy
+        (Y, X) each, one entry per pair): what edge lies between their samples."""
+        visibility = self.surface_differs(L, R, self.kind_of)
+        kind = np.full(visibility.shape, -1, np.int8)  # (small types: a pass per array)
+        light = np.zeros(visibility.shape, self.light_type)
+        kind[visibility] = VISIBILITY
+        same = ~visibility & (self.shape[L] != NO_HIT)
+        # On one surface, a pair across one edge only: where a shadow edge and a checker
+        # line (or two shadow edges) pass between the same two samples, the jump f_L - f_R
+        # is the sum of both and belongs to neither alone (such pairs are left out: a
+        # share of the crossings that falls as 1/k).
+        edges = np.zeros(visibility.shape, np.int16)
+        for j in range(len(self.lights)):
+            edge = same & (self.lit[j][L] != self.lit[j][R])
+            edges += edge
+            kind[edge], light[edge] = SHADOW, j
+        lines = crossed(self.cell, L, R)  # u and v lines crossed
+        checker = same & (lines > 0)
+        edges += lines * checker
+        kind[checker] = CHECKER
+        kind[same & (edges > 1)] = -1
+        # Seen along the specular chain (mirrors, glass): the first bounce whose key
+        # differs, if the first hits are alike: total internal reflection switching at
+        # the surface the bounce leaves, else a visibility edge or one checker line (a
+        # pair across two edges at that bounce is left out).
+        depth = np.full(visibility.shape, -1, np.int8)
+        pending = same & (edges == 0)
+        for d in range(bounces):  # (past every chain's end: no pair)
+            if not pending.any():
+                break
+            cs_l, cs_r = self.chain_shape[d][L], self.chain_shape[d][R]
+            tir = self.chain_tir[d][L] != self.chain_tir[d][R]
+            shape_differs = cs_l != cs_r
+            lines = crossed(self.chain_cell[d], L, R)
+            shadows = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
+            for j in range(len(self.lights)):
+                lit = self.chain_lit[d * len(self.lights) + j]
+                edge = ~shape_differs & (lit[L] != lit[R])
+                shadows += edge
+                light[pending & edge & ~tir] = j
+            here = pending & (shape_differs | (lines > 0) | tir | (shadows > 0))
+            ok = here & ~tir & ((shape_differs & (lines >= 0))
+                                | ((lines + shadows) == 1))
+            ok &= (cs_l != STOP) & (cs_r != STOP)
+            kind[ok & shape_differs] = CHAIN_VISIBILITY
+            kind[ok & ~shape_differs & (lines == 1)] = CHAIN_CHECKER
+            kind[ok & ~shape_differs & (shadows == 1)] = CHAIN_SHADOW
+            # total internal reflection switching at the bounce's surface: what the two
+            # chains meet after it differs because of it
+            switch = here & tir
+            kind[switch] = CHAIN_TIR
+            depth[ok | switch] = d
+            pending &= ~here
+        return kind, light, depth
+
     def kept(self, kind):
-        """Where a pair of ``kind`` (int8 lattice array; -1: none, or left out) is formed."""
+        """Where a pair of ``kind`` (int8 array; -1: none, or left out) is formed."""
         if self.formed[1:].all():
             return kind >= 0
         keep = np.zeros(kind.shape, bool)
@@ -686,23 +713,21 @@ class Boundary:
             keep |= kind == formed
         return keep
 
-    def surface_differs(self, left, right, kind_of):
-        """Whether two samples see different surfaces (the lattice's views ``left`` and
-        ``right``, numpy index expressions): another shape (or one a miss), or another face
-        of a flat mesh that is not coplanar with the first."""
-        sl, sr = self.shape[left], self.shape[right]
+    def surface_differs(self, L, R, kind_of):
+        """Whether the samples of the pairs (L, R) (numpy (Y, X) each) see different
+        surfaces: another shape (or one a miss), or another face of a flat mesh that is not
+        coplanar with the first."""
+        sl, sr = self.shape[L], self.shape[R]
         differs = sl != sr
-        faces = ~differs & (sl != NO_HIT) & (self.prim[left] != self.prim[right])
+        faces = ~differs & (sl != NO_HIT) & (self.prim[L] != self.prim[R])
         if not faces.any():
             return differs
         kind = kind_of[np.minimum(sl[faces], len(kind_of) - 1)]
         flat = (kind & MESH != 0) & (kind & SMOOTH == 0)
-        where = tuple(i[flat] for i in nonzero(faces))  # (only these: the normals' test
-        # over the whole lattice is the costly part)
-        nl, nr = (np.stack([c[side][where] for c in self.normal], -1) for side in (left, right))
-        bent = np.linalg.norm(nl - nr, axis=-1) > COPLANAR
-        differs = differs.copy()
-        differs[tuple(i[bent] for i in where)] = True
+        where = np.flatnonzero(faces)[flat]
+        nl, nr = (np.stack([c[side[0][where], side[1][where]] for c in self.normal], -1)
+                  for side in (L, R))
+        differs[where[np.linalg.norm(nl - nr, axis=-1) > COPLANAR]] = True
         return differs
 
     # -- the surrogates --------------------------------------------------------------------------

@@ -28,8 +28,8 @@ after any of these changed traces as before. Materials and colors may change bet
 two: no answer depends on them.
 
 The answers are outputs of each primal chunk's kernel, written in order as its colors are
-(scattered to their lanes instead, they cost the primal render 5.5 ms rather than 2), joined into one array
-each at the first replay when the render took several chunks.
+(scattered to their lanes instead, they cost the primal render 5.5 ms rather than 2),
+joined into one array each at the first replay when the render took several chunks.
 
 **Memory**: :data:`CAMERA_BYTES` per camera ray and :data:`SHADOW_BYTES` per light and
 camera ray, kept until the next primal render (twice that while the chunks are joined); a
@@ -74,7 +74,8 @@ def token(scene, sensor, width, height, spp):
         return np.asarray(value).tobytes()
 
     params = mi.traverse(sensor)
-    key = [width, height, spp, tuple((name, leaves(params[name])) for name in sorted(params.keys()))]
+    key = [width, height, spp,
+           tuple((name, leaves(params[name])) for name in sorted(params.keys()))]
     for emitter in scene.emitters():
         key.append(tuple(leaves(getattr(emitter, name))
                          for name in ("position", "direction") if hasattr(emitter, name)))

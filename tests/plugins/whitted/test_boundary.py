@@ -290,6 +290,48 @@ def test_pairs_are_formed_of_the_kinds_of_edges_the_keys_move(mi, keys, kinds):
     assert formed == {getattr(boundary, name) for name in kinds.split()}
 
 
+def test_the_pairs_are_those_of_every_pair_classified(mi, monkeypatch):
+    """The pairs are classified among the candidates only (the pairs whose samples differ in
+    some key): every pair of the lattice classified gives the same pairs, in the same order
+    (glass over a checker: visibility, shadows, checker lines, the chain's kinds)."""
+    import drjit as dr
+    import numpy as np
+    import raymitsuba
+
+    from raymitsuba.plugins.whitted import boundary
+
+    seen = []
+    pairs = boundary.Boundary.pairs
+
+    def kept(self):
+        seen.append((self, pairs(self)))
+        return seen[-1][1]
+
+    monkeypatch.setattr(boundary.Boundary, "pairs", kept)
+    scene = loaded(mi, GLASS_OVER_CHECKER, 16)
+    dr.enable_grad(scene.params["camera.eye"])
+    scene.params.update()
+    dr.backward(dr.sum(raymitsuba.render(scene), axis=None))
+    edges, found = seen[0]
+    rows, cols = edges.t.shape
+    kinds = set()
+    for axis in (1, 0):  # every pair of the axis but the ring's, row-major
+        ly, lx = np.mgrid[1:rows - 1, 0:cols - 1] if axis == 1 else \
+            np.mgrid[0:rows - 1, 1:cols - 1]
+        ly, lx = ly.ravel(), lx.ravel()
+        kind, light, depth = edges.classify((ly, lx), (ly + (axis == 0), lx + (axis == 1)),
+                                            edges.chain_bounces())
+        keep = edges.kept(kind)
+        mine = found["axis"] == axis
+        assert np.array_equal(found["L"][0][mine], ly[keep])
+        assert np.array_equal(found["L"][1][mine], lx[keep])
+        for name, value in (("kind", kind), ("light", light), ("depth", depth)):
+            assert np.array_equal(found[name][mine], value[keep])
+        kinds |= set(kind[keep].tolist())
+    assert kinds == {boundary.VISIBILITY, boundary.SHADOW, boundary.CHECKER,
+                     boundary.CHAIN_VISIBILITY, boundary.CHAIN_CHECKER, boundary.CHAIN_SHADOW}
+
+
 def test_leaving_unmoved_kinds_out_leaves_the_derivative_as_it_was(mi):
     """eta's derivative alone (the chain's pairs) and with the camera's keys too (every
     pair formed, the others' surrogates flat in eta): the same, to the float32 order of the
