@@ -33,7 +33,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
 
-from support_edges import GLASS, MIRRORED_SHADOW, SNELL, SPOT, TERMINATOR  # noqa: E402
+from support_edges import (GLASS, MIRRORED_SHADOW, SNELL, SPOT,  # noqa: E402
+                           SPHERE_ON_CHECKER as SCENE, TERMINATOR)
 
 FLAT = """\
 eye 0 0 5
@@ -52,22 +53,6 @@ light 1 1 1 point 2 3 9
 sphere 0.1 0.05 0 1.3
 """
 TRIANGLE = FLAT + "rotateZ 10\ntriangle -1.1 -1 0  1.3 -0.7 0.3  0.2 1.2 0\n"
-SCENE = """\
-eye 0.4 4 5
-lookat 0 0.2 0
-fov 35
-background 0.2 0.3 0.4
-light 1 1 1 point 2 5 4
-light 0.25 0.25 0.25 ambient
-material 0.9 0.85 0.7 0.4 0.6 0 1 0 0 1
-translate 0 -1 0
-checkerboard 1.2
-plane
-reset
-material 0.8 0.3 0.2 0.3 0.7 0.3 10 0 0 1
-translate -0.9 0 0
-sphere
-"""
 
 
 

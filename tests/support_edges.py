@@ -39,6 +39,24 @@ light 0.2 0.2 0.2 ambient
 material 0.8 0.4 0.3 0.2 0.3 0.8 1 0 0 1
 sphere
 """
+# a sphere, its shadow on a checkered plane, a point light: every kind of edge seen directly
+# (the benchmark's camera keys and its cost; tests/plugins/whitted/test_replay.py)
+SPHERE_ON_CHECKER = """\
+eye 0.4 4 5
+lookat 0 0.2 0
+fov 35
+background 0.2 0.3 0.4
+light 1 1 1 point 2 5 4
+light 0.25 0.25 0.25 ambient
+material 0.9 0.85 0.7 0.4 0.6 0 1 0 0 1
+translate 0 -1 0
+checkerboard 1.2
+plane
+reset
+material 0.8 0.3 0.2 0.3 0.7 0.3 10 0 0 1
+translate -0.9 0 0
+sphere
+"""
 # a spotlight of coefficient 0 on a floor: it lights the half-space in front of it evenly,
 # and its edge (cos a = 0) crosses the image
 SPOT = """\

@@ -7,27 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from support_edges import SPHERE_ON_CHECKER as SCENE
 
-# a sphere, its shadow on a checkered plane, a point light: every first-generation query
-SCENE = """\
-eye 0.4 4 5
-lookat 0 0.2 0
-fov 35
-background 0.2 0.3 0.4
-light 1 1 1 point 2 5 4
-light 0.25 0.25 0.25 ambient
-material 0.9 0.85 0.7 0.4 0.6 0 1 0 0 1
-translate 0 -1 0
-checkerboard 1.2
-plane
-reset
-material 0.8 0.3 0.2 0.3 0.7 0.3 10 0 0 1
-translate -0.9 0 0
-sphere
-"""
 WIDTH, HEIGHT = 24, 18
-
-
 # the keys' tangents of the forward-mode derivative (forward mode: a pixel's derivative is
 # its own sum, the same bits on every run; a reverse pass's key derivative is summed
 # atomically, in the threads' order)
