@@ -129,9 +129,11 @@ def render(loaded: Loaded, spp: int | None = None, params=None):
     """The image as a Dr.Jit TensorXf (H, W, 3), linear. Differentiable w.r.t. ``params``
     (default: all of ``loaded.params``, if it has been used) through ``mi.render``.
 
-    Traced in chunks within the loaded ``memory_budget`` and assembled on the host (16384 x
-    16384 works: a 3.2 GB tensor); ``loaded.integrator.render_array(loaded.scene)`` gives
-    the numpy array without the tensor's copy. A request no budget can hold raises
+    Traced in chunks within the loaded ``memory_budget`` and assembled where the tensor
+    lives, without waiting for the chunks' kernels (with ``aa``, on the host: the
+    refinement reads it; 16384 x 16384 works: a 3.2 GB tensor);
+    ``loaded.integrator.render_array(loaded.scene)`` gives the numpy array, assembled on the
+    host. A request no budget can hold raises
     ``BudgetError`` (raymitsuba.plugins.whitted.guards) before anything is traced."""
     from raymitsuba.backend import mitsuba
 
