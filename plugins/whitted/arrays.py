@@ -1,4 +1,5 @@
-"""Host (numpy) arrays handed to Dr.Jit: :func:`jit_array`.
+"""Host (numpy) arrays handed to Dr.Jit: :func:`jit_array`; device arrays assembled from
+parts: :class:`Assembled`.
 
 On the LLVM backend Dr.Jit does not copy a numpy array it is given: it maps the array's own
 memory, and compiles each kernel that reads it for that memory's alignment (a vector load
@@ -38,6 +39,29 @@ def jit_tensor(values):
 
     values = np.asarray(values, np.float32)
     return mi.TensorXf(jit_array(mi.Float, values.ravel()), shape=values.shape)
+
+
+class Assembled:
+    """A Dr.Jit array of type ``cls`` and width ``total`` assembled on the device from parts
+    that cover it (:meth:`add`), in :attr:`array`: a part that covers it all is the array
+    itself; otherwise each is scattered at its offset, given as data (``dr.concat`` makes
+    the offsets constants of one kernel, compiled anew for each count of parts), and
+    launched at once, so that the parts are freed as they come."""
+
+    def __init__(self, cls, total):
+        self.cls, self.total = cls, total
+        self.array = None  # (None: no part yet)
+
+    def add(self, first, part):
+        """The entries first .. first + width(part) - 1 of the array are ``part``'s."""
+        if self.array is None and first == 0 and dr.width(part) == self.total:
+            self.array = part
+            return
+        if self.array is None:
+            self.array = dr.empty(self.cls, self.total)
+        index = dr.uint32_array_t(self.cls)
+        dr.scatter(self.array, part, dr.arange(index, dr.width(part)) + dr.opaque(index, first))
+        dr.eval(self.array)
 
 
 _DTYPES = {dr.VarType.Float32: np.float32, dr.VarType.Float64: np.float64,

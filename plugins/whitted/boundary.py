@@ -182,9 +182,9 @@ def spot_cosine(light, wi):
 
 
 def crossed(cells, left, right):
-    """How many checker lines (u and v) lie between the cells of the lattice's views ``left``
-    and ``right`` (numpy index expressions) of ``cells`` (planes of u and v cells, (2, ...)):
-    an int8 array."""
+    """How many checker lines (u and v) lie between the cells at ``left`` and ``right``
+    (numpy index expressions of the lattice: views, or points (Y, X)) of ``cells`` (planes
+    of u and v cells, (2, ...)): an int8 array."""
     return (cells[0][left] != cells[0][right]).view(np.int8) \
         + (cells[1][left] != cells[1][right]).view(np.int8)
 
@@ -625,9 +625,8 @@ class Boundary:
     def chain_bounces(self):
         """How many bounces of the specular chain some chain reaches: those before the first
         that none does (0: no mirror, no glass)."""
-        ended = [bool(np.all(shape == STOP)) for shape in self.chain_shape]
-        ended += [True] * (CHAIN_DEPTH - len(ended))  # (bounces no chain reached)
-        return ended.index(True)
+        reached = [not np.all(shape == STOP) for shape in self.chain_shape]
+        return (reached + [False]).index(False)  # (every bounce reached: CHAIN_DEPTH)
 
     def candidates(self, axis, bounces):
         """(Y, X) of L of the pairs along ``axis`` (1: rows, 0: columns) whose samples differ

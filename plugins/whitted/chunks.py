@@ -118,7 +118,7 @@ class Chunker:
         ``lazy``: the colors are handed over unevaluated (``Tracer.trace``); ``record``:
         optional callable(start, count) giving the ``first_hit`` hook of the chunk's trace;
         ``queries``: optional callable(start, count, terms) giving its ``queries`` (or None;
-        ``Tracer.trace``, ``terms`` the chunk's scene terms)."""
+        ``Tracer.trace``, ``terms`` the chunk's scene terms); start counts the job's pixels."""
         max_rays = self.tree_rays(ad)
         self.pixels_total += job.count
         start = 0

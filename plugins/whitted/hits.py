@@ -234,6 +234,9 @@ class HitTable:
                 key.append((int(shape_id), "sphere") + sphere_key(shape))
             elif shape.class_name() == "Ellipsoids" and isinstance(shape.bsdf(), SurfaceSet):
                 data = shape_property(shape, "data")  # the sphere set (raymitsuba.sphere_set)
+                # (a handle of the table's own: ``data`` is the shape's, which an update
+                # points at a new variable, and the key names the variable by its index)
+                data = type(data)(data)
                 buffers.append(data)
                 key.append((int(shape_id), "spheres", data.index))
             else:  # not in the table: its hits need Mitsuba's dispatch

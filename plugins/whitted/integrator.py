@@ -17,7 +17,8 @@ surface itself excluded). Its parts, one idea per module: the package index
 A render (:meth:`Whitted.render_array`), step by step: the guard on the output buffer
 (``guards.py``); the probe's estimate of the render's rays (``chunks.probe``), which the
 guards refuse past the memory budget or the time limit; the first pass, traced in chunks
-of camera rays within the memory budget (``chunks.py``) and assembled on the host, the
+of camera rays within the memory budget (``chunks.py``) and assembled on the host (on the
+device for :meth:`Whitted.render`, ``mi.render``'s, without waiting for the kernels), the
 image of the one wavefront of ``render_image`` bit for bit; with ``aa`` > 0, adaptive
 anti-aliasing of the pixels that differ from their neighbours (see ``antialias.py``).
 
@@ -44,7 +45,7 @@ from raymitsuba import options
 from raymitsuba.options import RenderOptions
 
 from . import antialias, boundary, guards, replay
-from .arrays import jit_array, jit_tensor
+from .arrays import Assembled, jit_array, jit_tensor
 from .camera import box_filter, camera_rays, pixel_means
 from .chunks import Chunker, Job, probe
 from .tree import Tracer
@@ -87,8 +88,8 @@ class Whitted(mi.CppADIntegrator):
         # yet), which the adjoint passes of the same image follow
         self.plan = None
         # The first generation's ray queries of the last primal render, recorded where an
-        # adjoint pass follows it (replay.Recording; None: none), and how many chunks of the
-        # last adjoint pass replayed it
+        # adjoint pass follows it (replay.Recording; None: none), and how many chunk traces
+        # of the last adjoint pass replayed it
         self.recording = None
         self.replayed = 0
 
@@ -121,12 +122,11 @@ class Whitted(mi.CppADIntegrator):
             return jit_tensor(self.render_array(scene, sensor, spp))  # (aligned: arrays.py)
         # Kept on the device, each chunk's pixels evaluated there without waiting for them:
         # what follows (a loss, an adjoint pass's graph) is built while the kernels run.
-        chunks = []
-        self.render_array(scene, sensor, spp, store=lambda first, values: chunks.append(values),
-                          on_device=True)
         _, _, width, height = self._setup(scene, sensor, spp)
-        image = chunks[0] if len(chunks) == 1 else dr.concat(chunks)
-        return mi.TensorXf(image, shape=(height, width, 3))
+        image = Assembled(mi.Float, width * height * 3)
+        self.render_array(scene, sensor, spp, on_device=True,
+                          store=lambda first, values: image.add(3 * first, values))
+        return mi.TensorXf(image.array, shape=(height, width, 3))
 
     def render_forward(self, scene, params, sensor=0, seed=0, spp=0):
         sensor, spp, width, height = self._setup(scene, sensor, spp)
@@ -134,7 +134,7 @@ class Whitted(mi.CppADIntegrator):
         jobs = self._adjoint_jobs(scene, sensor, spp, width, height)
         chunker = self._adjoint_chunker(scene, sensor)
         edges = self._boundary(scene, sensor, spp, width, height)  # (issue 13) or None
-        queries = self._replay(scene, sensor, spp, width, height)
+        replays = self._replay(scene, sensor, spp, width, height)
         for j, (job, _) in enumerate(jobs):
             last_job = j == len(jobs) - 1 and edges is None
 
@@ -152,7 +152,8 @@ class Whitted(mi.CppADIntegrator):
                 grads[job.pixel_index(start, count).numpy()] = grad
 
             chunker.run(job, visit, ad=True,
-                        record=None if edges is None else edges.recorder(job), queries=queries)
+                        record=None if edges is None else edges.recorder(job),
+                        queries=None if replays is None else replays(job))
         if edges is not None:
             edges.forward(grads, last=True)
         return jit_tensor(grads.reshape(height, width, 3))
@@ -163,7 +164,7 @@ class Whitted(mi.CppADIntegrator):
         grad_in = mi.Float(dr.detach(grad_in.array if isinstance(grad_in, mi.TensorXf)
                                      else mi.TensorXf(grad_in).array))
         edges = self._boundary(scene, sensor, spp, width, height)  # (issue 13) or None
-        queries = self._replay(scene, sensor, spp, width, height)
+        replays = self._replay(scene, sensor, spp, width, height)
         for job, weights in self._adjoint_jobs(scene, sensor, spp, width, height):
             # pixels refined later take their value (and their gradient) from a later job
             grad = grad_in if weights is None else grad_in * jit_array(mi.Float, np.repeat(weights, 3))
@@ -186,7 +187,8 @@ class Whitted(mi.CppADIntegrator):
                     edges.collect(job, start, count, color)
 
             chunker.run(job, visit, ad=True, lazy=True,
-                        record=None if edges is None else edges.recorder(job), queries=queries)
+                        record=None if edges is None else edges.recorder(job),
+                        queries=None if replays is None else replays(job))
         if edges is not None:
             edges.backward(grad_in.numpy().reshape(-1, 3))
 
@@ -232,7 +234,8 @@ class Whitted(mi.CppADIntegrator):
                        assemble_into(image) if assemble else
                        store if on_device else on_host(store),
                        None if recording is None else
-                       lambda start, count, terms: recording.recorder(start * spp, count * spp))
+                       lambda start, count, terms:
+                       recording.recorder((lo * width + start) * spp, count * spp))
             self.recording = recording
             if self.aa > 0:
                 plan = antialias.refine(image.reshape(hi - lo, width, 3), spp, self.aa,
@@ -307,21 +310,25 @@ class Whitted(mi.CppADIntegrator):
                                 terms.geometry.key)
 
     def _replay(self, scene, sensor, spp, width, height):
-        """The ``queries`` of an adjoint pass's chunks (``Chunker.run``): the last primal
-        render's recording, replayed in each chunk whose geometry table is that render's,
-        if the camera, lights, size and samples are too; else None (traced)."""
+        """A callable(job) giving the ``queries`` of an adjoint pass's chunks of a job
+        (``Chunker.run``): the last primal render's recording, replayed in each chunk whose
+        geometry table is that render's, if the camera, lights, size and samples are too;
+        or None (traced). Counts the chunk traces that replay in :attr:`replayed`."""
         recording, self.replayed = self.recording, 0
         if recording is None or self.aa > 0:
             return None
         token = replay.token(scene, sensor, width, height, spp)
 
-        def queries(start, count, terms):
-            if not recording.matches(token, terms.geometry.key):
-                return None
-            self.replayed += 1
-            return recording.replayer(start * spp, count * spp)
+        def replays(job):
+            def queries(start, count, terms):
+                if not recording.matches(token, terms.geometry.key):
+                    return None
+                self.replayed += 1
+                return recording.replayer((job.first + start) * spp, count * spp)
 
-        return queries
+            return queries
+
+        return replays
 
     def _adjoint_chunker(self, scene, sensor):
         return Chunker(self.tracer, scene, sensor, self.memory_budget,

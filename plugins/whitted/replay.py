@@ -29,10 +29,11 @@ two: no answer depends on them.
 
 The answers are outputs of each primal chunk's kernel, written in order as its colors are
 (scattered to their lanes instead, they cost the primal render 5.5 ms rather than 2),
-joined into one array each at the first replay when the render took several chunks.
+assembled into one array each at the first replay when the render took several chunks
+(``arrays.Assembled``).
 
 **Memory**: :data:`CAMERA_BYTES` per camera ray and :data:`SHADOW_BYTES` per light and
-camera ray, kept until the next primal render (twice that while the chunks are joined); a
+camera ray, kept until the next primal render (twice that while the chunks are assembled); a
 render whose recording would take more than a quarter of the integrator's memory budget
 records nothing (its adjoint passes trace; the boundary terms' keys take more than 4 times
 a recording, so a gradient step that has them always records). Only renders of the whole
@@ -43,6 +44,8 @@ pixels' own samples).
 import drjit as dr
 import mitsuba as mi
 import numpy as np
+
+from .arrays import Assembled
 
 CAMERA_BYTES = 20  # t, uv (two floats), shape (NO_SHAPE: no hit), primitive: 4 bytes each
 SHADOW_BYTES = 8  # shape (NO_SHAPE: not blocked), primitive: 4 bytes each
@@ -60,7 +63,8 @@ def token(scene, sensor, width, height, spp):
     size and samples; the sensor's values and the lights' positions and directions, each
     Dr.Jit value by its variable's index (no read: a read would wait for the kernels
     queued), host values by their bytes. An index names its variable while the variable
-    lives: a recording keeps its token's values."""
+    lives: a recording keeps its token's variables (a handle of its own to each: the
+    values read here are the objects' own, which an update points at a new variable)."""
     kept = []
 
     def leaves(value):
@@ -69,7 +73,7 @@ def token(scene, sensor, width, height, spp):
         if dr.is_array_v(value) and dr.depth_v(value) > 1:
             return tuple(leaves(component) for component in value)
         if dr.is_jit_v(value):
-            kept.append(value)
+            kept.append(type(value)(value))
             return value.index
         return np.asarray(value).tobytes()
 
@@ -89,21 +93,21 @@ class Recording:
 
     def __init__(self, token, geometry):
         (self.token, self.kept), self.geometry = token, geometry
-        # per chunk, by its first lane: (its lanes, the camera's fields (t, u, v, shape,
-        # prim), per light its shadows' (shape, prim)); a chunk traced again in halves (too
-        # large a tree, see chunks.py) is replaced by its first half
-        self.chunks = {}
-        self.joined = None  # the chunks' fields, one array each (see answers)
+        # per chunk, by its first lane: (the camera's fields (t, u, v, shape, prim), per
+        # light its shadows' (shape, prim)); a chunk traced again in halves (too large a
+        # tree, see chunks.py) is replaced by its first half
+        self.parts = {}
+        self.joined = None  # the parts' fields, one array each (see answers)
 
     def matches(self, token, geometry):
-        """Whether a pass of ``token`` over a geometry table of key ``geometry`` may replay
-        this recording."""
+        """Whether a pass of ``token`` (:func:`token`: key and values) over a geometry table
+        of key ``geometry`` may replay this recording."""
         return token[0] == self.token and geometry == self.geometry
 
     def recorder(self, first, count):
         """The queries of a chunk's ``count`` lanes from lane ``first``, asked of the ray
         tracer and recorded (a ``Tracer.trace`` ``queries``)."""
-        return _Recorder(self.chunks, first, count)
+        return _Recorder(self.parts, first)
 
     def replayer(self, first, count):
         """The queries of the ``count`` lanes from lane ``first``, read back."""
@@ -113,36 +117,39 @@ class Recording:
     def answers(self):
         """(The camera's fields, per light its fields) of every lane (see __init__)."""
         if self.joined is None:
-            chunks = [self.chunks[first] for first in sorted(self.chunks)]
-            camera = [c for _, c, _ in chunks]
-            shadows = [[s[j] for j in sorted(s)] for _, _, s in chunks]
-            if len(chunks) == 1:
-                self.joined = camera[0], shadows[0]
-            else:
-                self.joined = (_joined(camera), [_joined(light) for light in zip(*shadows)])
-                dr.eval(self.joined)
-            self.chunks = {}
+            firsts = sorted(self.parts)
+            lanes = firsts[-1] + dr.width(self.parts[firsts[-1]][0][0])
+            camera = _joined([(first, self.parts[first][0]) for first in firsts], lanes)
+            shadows = [_joined([(first, self.parts[first][1][j]) for first in firsts], lanes)
+                       for j in sorted(self.parts[firsts[0]][1])]
+            self.joined, self.parts = (camera, shadows), {}
         return self.joined
 
 
-def _joined(fields):
-    """Each field of a sequence of tuples of fields, concatenated."""
-    return tuple(dr.concat(list(parts)) for parts in zip(*fields))
+def _joined(parts, lanes):
+    """Each field of ``parts`` ((first lane, fields) pairs), assembled over ``lanes``."""
+    out = []
+    for i, field in enumerate(parts[0][1]):
+        assembled = Assembled(type(field), lanes)
+        for first, fields in parts:
+            assembled.add(first, fields[i])
+        out.append(assembled.array)
+    return tuple(out)
 
 
 class _Recorder:
     """The first generation's queries (``Tracer.trace``'s ``queries``), traced, their answers
     kept as outputs of the chunk's kernel (scheduled: evaluated with its colors)."""
 
-    def __init__(self, chunks, first, count):
-        self.chunks, self.first, self.count = chunks, first, count
+    def __init__(self, parts, first):
+        self.parts, self.first = parts, first
         self.shadows = {}  # light: its fields
 
     def camera(self, scene, ray, coherent):
         pi = scene.ray_intersect_preliminary(ray, coherent=coherent)
         fields = (pi.t, pi.prim_uv.x, pi.prim_uv.y, _shape(pi), mi.UInt32(pi.prim_index))
         dr.schedule(fields)
-        self.chunks[self.first] = (self.count, fields, self.shadows)
+        self.parts[self.first] = (fields, self.shadows)
         return pi
 
     def shadow(self, scene, light, ray, active):

@@ -226,6 +226,9 @@ def test_the_primal_image_does_not_change_by_a_bit(mi):
         dr.enable_grad(scene.params[key])
     scene.params.update()
     attached = raymitsuba.render(scene)
+    # (recording its first generation's answers for the adjoint pass: its shadow rays ask
+    # for their closest blocker rather than any, replay.py)
+    assert scene.integrator.recording is not None
     assert np.array_equal(attached.numpy().astype(np.float64), plain)
 
 
@@ -330,6 +333,56 @@ def test_the_pairs_are_those_of_every_pair_classified(mi, monkeypatch):
         kinds |= set(kind[keep].tolist())
     assert kinds == {boundary.VISIBILITY, boundary.SHADOW, boundary.CHECKER,
                      boundary.CHAIN_VISIBILITY, boundary.CHAIN_CHECKER, boundary.CHAIN_SHADOW}
+
+
+# two parallel mirrors (a floor and a ceiling) and a sphere between: chains that bounce to
+# the last bounce followed (CHAIN_DEPTH)
+MIRROR_CORRIDOR = """\
+eye 0 0 5
+lookat 0 -0.3 0
+fov 50
+background 0.2 0.3 0.4
+light 1 1 1 point 0 0.5 4
+light 0.2 0.2 0.2 ambient
+material 0.6 0.6 0.6 0.2 0.3 0 1 0.8 0 1
+translate 0 -1 0
+checkerboard 0.5
+plane
+reset
+translate 0 1 0
+plane
+reset
+material 0.8 0.3 0.2 0.3 0.7 0 1 0 0 1
+scale 0.5 0.5 0.5
+sphere
+"""
+
+
+def test_chains_that_reach_the_last_bounce_followed_form_their_pairs(mi, monkeypatch):
+    """Every bounce of the chain reached by some sample: the pairs are formed at each (the
+    classification once failed there, finding no bounce that no chain reaches)."""
+    import drjit as dr
+    import numpy as np
+    import raymitsuba
+
+    from raymitsuba.plugins.whitted import boundary
+
+    seen = []
+    pairs = boundary.Boundary.pairs
+
+    def kept(self):
+        seen.append((self.chain_bounces(), pairs(self)))
+        return seen[-1][1]
+
+    monkeypatch.setattr(boundary.Boundary, "pairs", kept)
+    scene = loaded(mi, MIRROR_CORRIDOR, 16)
+    dr.enable_grad(scene.params["camera.eye"])
+    scene.params.update()
+    dr.backward(dr.sum(raymitsuba.render(scene), axis=None))
+    bounces, found = seen[0]
+    assert bounces == boundary.CHAIN_DEPTH
+    assert set(found["depth"].tolist()) >= set(range(boundary.CHAIN_DEPTH))
+    assert np.all(np.isfinite(dr.grad(scene.params["camera.eye"]).numpy()))
 
 
 def test_leaving_unmoved_kinds_out_leaves_the_derivative_as_it_was(mi):
