@@ -293,12 +293,10 @@ def test_pairs_are_formed_of_the_kinds_of_edges_the_keys_move(mi, keys, kinds):
     assert formed == {getattr(boundary, name) for name in kinds.split()}
 
 
-def test_the_pairs_are_those_of_every_pair_classified(mi, monkeypatch):
-    """The pairs are classified among the candidates only (the pairs whose samples differ in
-    some key): every pair of the lattice classified gives the same pairs, in the same order
-    (glass over a checker: visibility, shadows, checker lines, the chain's kinds)."""
+def pairs_of_a_step(mi, monkeypatch, text):
+    """A gradient step of ``text`` (spp 16) with respect to the eye: (the loaded scene, its
+    boundary pass, the pairs that pass formed)."""
     import drjit as dr
-    import numpy as np
     import raymitsuba
 
     from raymitsuba.plugins.whitted import boundary
@@ -311,11 +309,22 @@ def test_the_pairs_are_those_of_every_pair_classified(mi, monkeypatch):
         return seen[-1][1]
 
     monkeypatch.setattr(boundary.Boundary, "pairs", kept)
-    scene = loaded(mi, GLASS_OVER_CHECKER, 16)
+    scene = loaded(mi, text, 16)
     dr.enable_grad(scene.params["camera.eye"])
     scene.params.update()
     dr.backward(dr.sum(raymitsuba.render(scene), axis=None))
-    edges, found = seen[0]
+    return (scene, *seen[0])
+
+
+def test_the_pairs_are_those_of_every_pair_classified(mi, monkeypatch):
+    """The pairs are classified among the candidates only (the pairs whose samples differ in
+    some key): every pair of the lattice classified gives the same pairs, in the same order
+    (glass over a checker: visibility, shadows, checker lines, the chain's kinds)."""
+    import numpy as np
+
+    from raymitsuba.plugins.whitted import boundary
+
+    _, edges, found = pairs_of_a_step(mi, monkeypatch, GLASS_OVER_CHECKER)
     rows, cols = edges.t.shape
     kinds = set()
     for axis in (1, 0):  # every pair of the axis but the ring's, row-major
@@ -363,24 +372,11 @@ def test_chains_that_reach_the_last_bounce_followed_form_their_pairs(mi, monkeyp
     classification once failed there, finding no bounce that no chain reaches)."""
     import drjit as dr
     import numpy as np
-    import raymitsuba
 
     from raymitsuba.plugins.whitted import boundary
 
-    seen = []
-    pairs = boundary.Boundary.pairs
-
-    def kept(self):
-        seen.append((self.chain_bounces(), pairs(self)))
-        return seen[-1][1]
-
-    monkeypatch.setattr(boundary.Boundary, "pairs", kept)
-    scene = loaded(mi, MIRROR_CORRIDOR, 16)
-    dr.enable_grad(scene.params["camera.eye"])
-    scene.params.update()
-    dr.backward(dr.sum(raymitsuba.render(scene), axis=None))
-    bounces, found = seen[0]
-    assert bounces == boundary.CHAIN_DEPTH
+    scene, edges, found = pairs_of_a_step(mi, monkeypatch, MIRROR_CORRIDOR)
+    assert edges.chain_bounces() == boundary.CHAIN_DEPTH
     assert set(found["depth"].tolist()) >= set(range(boundary.CHAIN_DEPTH))
     assert np.all(np.isfinite(dr.grad(scene.params["camera.eye"]).numpy()))
 
