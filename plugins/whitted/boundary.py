@@ -260,9 +260,27 @@ def stacked(values, lanes):
 
 
 def at_l_and_r(value, count):
-    """The values (numpy) of a stacked Float (evaluated) at L and at R, ``count`` pairs."""
-    host = value.numpy()
-    return host[:count], host[count:2 * count]
+    """The values of a stacked array at L and at R (point sets 0 and 1, ``count`` pairs): two
+    arrays of ``count`` lanes, on the device."""
+    lane = dr.arange(mi.UInt32, count)
+    return (dr.gather(type(value), value, lane),
+            dr.gather(type(value), value, lane + dr.opaque(mi.UInt32, count)))
+
+
+def on_lanes(value, lanes):
+    """A per-pair Dr.Jit array (P lanes) repeated for each point set of stacked rays of
+    ``lanes`` lanes (the device's :func:`stacked`)."""
+    count = dr.width(value)
+    return dr.gather(type(value), value, dr.arange(mi.UInt32, lanes) % dr.opaque(mi.UInt32, count))
+
+
+def signs_differ(a, b):
+    """Whether the signs of ``a`` and ``b`` (Floats) differ, as numpy's ``np.sign(a) !=
+    np.sign(b)`` decides it (zero has its own sign; a NaN differs from everything)."""
+    def sign(x):
+        return dr.select(x > 0, 1, dr.select(x < 0, -1, 0))
+
+    return (sign(a) != sign(b)) | dr.isnan(a) | dr.isnan(b)
 
 
 def lanes_of(stack, i, count):
@@ -811,7 +829,8 @@ class Boundary:
         g = self.crossing(table, terms, ray, si, L, R, kind, light, choices)
         if (depth >= 0).any():
             g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light, choices)
-        dr.eval(g)
+        # (the choices made here evaluated with g: a later call reads them, not their graph)
+        dr.eval(g, [v for made in choices.values() for v in made if isinstance(v, dr.ArrayBase)])
         return g, dr.detach(g).numpy().astype(np.float64).reshape(len(sets), len(kind))
 
     @staticmethod
@@ -969,19 +988,17 @@ class Boundary:
             if has_cone(source):  # a spot's cone edge (cos a = 0) rather than the terminator
                 cone = spot_cosine(source, wi)
                 if made is None:
-                    with dr.suspend_grad():
-                        cos_l, cos_r = at_l_and_r(cone, len(which))
-                    crosses = np.sign(cos_l) != np.sign(cos_r)
+                    crosses = signs_differ(*at_l_and_r(dr.detach(cone), len(which)))
                 else:
                     crosses = made[0]
-                facing = dr.select(jit_array(mi.Bool, stacked(crosses, lanes)), cone, facing)
+                facing = dr.select(on_lanes(crosses, lanes), cone, facing)
             else:
                 crosses = None
             edge = made[1] if made is not None else \
                 self.crossed_edge(table, shadow, blocker[:, 0], blocker[:, 1])
             choices[(name, "shadow", j)] = (crosses, edge)
             gs = self.inside(table, shadow, stacked(blocker[:, 0], lanes),
-                             stacked(blocker[:, 1], lanes), stacked(edge, lanes))
+                             stacked(blocker[:, 1], lanes), on_lanes(edge, lanes))
             g = dr.select(jit_array(mi.Bool, stacked(mask, lanes)),
                           dr.select(unblocked, facing, gs), g)
         return g
@@ -1002,21 +1019,23 @@ class Boundary:
             f_edge = self.crossed_edge(table, ray, f_shape, f_prim)
         else:
             n_edge, f_edge, use_n, use_f = made
-        n_shape_s, n_prim_s, n_edge_s, f_shape_s, f_prim_s, f_edge_s = (
-            stacked(a, lanes) for a in (n_shape, n_prim, n_edge, f_shape, f_prim, f_edge))
-        gn = self.inside(table, ray, n_shape_s, n_prim_s, n_edge_s)
-        gf = self.inside(table, ray, f_shape_s, f_prim_s, f_edge_s)
+        if made is None:  # N's function where its sign differs between L and R, else F's
+            with dr.suspend_grad():
+                g_l, g_r = (
+                    [self.inside(table, rays, shape, prim, edge)
+                     for shape, prim, edge in ((n_shape, n_prim, n_edge), (f_shape, f_prim, f_edge))]
+                    for rays in at_l_and_r(ray, len(f_shape)))
+            use_n = signs_differ(g_l[0], g_r[0])
+            use_f = ~use_n & jit_array(mi.Bool, f_shape < STOP) & signs_differ(g_l[1], g_r[1])
+            choices[(name, "visibility")] = (n_edge, f_edge, use_n, use_f)
+        n_shape_s, n_prim_s, f_shape_s, f_prim_s = (
+            stacked(a, lanes) for a in (n_shape, n_prim, f_shape, f_prim))
+        gn = self.inside(table, ray, n_shape_s, n_prim_s, on_lanes(n_edge, lanes))
+        gf = self.inside(table, ray, f_shape_s, f_prim_s, on_lanes(f_edge, lanes))
         crease = self.depth(table, ray, n_shape_s, n_prim_s) \
             - self.depth(table, ray, f_shape_s, f_prim_s)
-        if made is None:
-            dr.eval(gn, gf, crease)
-            gn_l, gn_r = at_l_and_r(dr.detach(gn), len(f_shape))
-            gf_l, gf_r = at_l_and_r(dr.detach(gf), len(f_shape))
-            use_n = np.sign(gn_l) != np.sign(gn_r)
-            use_f = ~use_n & (f_shape < STOP) & (np.sign(gf_l) != np.sign(gf_r))
-            choices[(name, "visibility")] = (n_edge, f_edge, use_n, use_f)
-        return dr.select(jit_array(mi.Bool, stacked(use_n, lanes)), gn,
-                         dr.select(jit_array(mi.Bool, stacked(use_f, lanes)), gf, crease))
+        return dr.select(on_lanes(use_n, lanes), gn,
+                         dr.select(on_lanes(use_f, lanes), gf, crease))
 
     def chain_crossing(self, table, terms, ray, si, L, R, kind, depth, g, light, choices):
         """g of the pairs whose edge is seen along the specular chain, at bounce ``depth``:
@@ -1071,8 +1090,8 @@ class Boundary:
 
     def inside(self, table, ray, shape, prim, edge=None):
         """The inside function of primitive (shape, prim) for each ray (numpy ids): > 0 where
-        the ray's line meets it (see the module docstring). For a triangle, ``edge`` (numpy,
-        per lane: 0, 1, 2, or -1 for the least of the three) picks the edge function."""
+        the ray's line meets it (see the module docstring). For a triangle, ``edge`` (an
+        Int32 per lane: 0, 1, 2, or -1 for the least of the three) picks the edge function."""
         ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
         valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
         kind = dr.gather(mi.UInt32, table.kind, ids, valid)
@@ -1090,9 +1109,8 @@ class Boundary:
             e = self.edge_functions(table, ray, d, row, prim, mesh)
             g = dr.minimum(dr.minimum(e[0], e[1]), e[2])
             if edge is not None:
-                which = jit_array(mi.UInt32, np.maximum(edge, 0).astype(np.uint32))
-                chosen = dr.select(which == 0, e[0], dr.select(which == 1, e[1], e[2]))
-                g = dr.select(jit_array(mi.Bool, edge >= 0), chosen, g)
+                chosen = dr.select(edge == 0, e[0], dr.select(edge == 1, e[1], e[2]))
+                g = dr.select(edge >= 0, chosen, g)
             out = dr.select(mesh, g, out)
         return out
 
@@ -1113,27 +1131,27 @@ class Boundary:
                 for a, b in ((p0, p1), (p1, p2), (p2, p0))]
 
     def crossed_edge(self, table, ray, shape, prim):
-        """Per pair (numpy): the edge of the face (shape, prim) whose function changes sign
-        between the rays of L and R (of the stacked rays ``ray``; -1: none, or not a face)."""
-        if not table.has_meshes:
-            return np.full(len(shape), -1)
+        """Per pair (an Int32 of P lanes, on the device): the edge of the face (shape, prim)
+        (numpy) whose function changes sign between the rays of L and R (of the stacked rays
+        ``ray``; the first such; -1: none, or not a face)."""
         count = len(shape)
+        if not table.has_meshes:
+            return dr.full(mi.Int32, -1, count)
         with dr.suspend_grad():
-            lanes = dr.arange(mi.UInt32, 2 * count)  # L's and R's
-            ray = mi.Ray3f(dr.gather(mi.Point3f, ray.o, lanes),
-                           dr.gather(mi.Vector3f, ray.d, lanes))
-            shape2, prim2 = np.tile(shape, 2), np.tile(prim, 2)
-            ids = jit_array(mi.UInt32, np.where(shape2 == NO_HIT, 0, shape2).astype(np.uint32))
-            valid = jit_array(mi.Bool, shape2 != NO_HIT) & (ids < table.size)
+            ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+            valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
             kind = dr.gather(mi.UInt32, table.kind, ids, valid)
             row = dr.gather(mi.UInt32, table.first, ids, valid)
             mesh = valid & ((kind & MESH) != 0)
-            edges = self.edge_functions(table, ray, dr.normalize(ray.d), row, prim2, mesh)
-            dr.eval(edges, mesh)
-            sides = [at_l_and_r(e, count) for e in edges]
-        flips = np.stack([np.sign(el) != np.sign(er) for el, er in sides], -1)
-        edge = np.where(flips.any(-1), np.argmax(flips, -1), -1)
-        return np.where(mesh.numpy()[:count], edge, -1)
+            sides = []
+            for rays in at_l_and_r(ray, count):  # (L's, then R's)
+                d = dr.normalize(dr.detach(rays.d))
+                rays = mi.Ray3f(dr.detach(rays.o), d)
+                sides.append(self.edge_functions(table, rays, d, row, prim, mesh))
+            edge = mi.Int32(-1)
+            for i in (2, 1, 0):  # (the first edge that flips)
+                edge = dr.select(signs_differ(sides[0][i], sides[1][i]), i, edge)
+            return dr.select(mesh, edge, -1)
 
     def depth(self, table, ray, shape, prim):
         """The distance along each ray to the primitive (shape, prim)'s plane or sphere."""
