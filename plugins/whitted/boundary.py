@@ -878,9 +878,9 @@ class Boundary:
         sphere &= (self.shape[onward] == shape) & (self.prim[onward] == self.prim[inside])
         if not sphere.any():
             return None
-        delta = np.maximum(np.where(near_l, w, 1.0 - w), 1e-3)
-        factor = np.where(sphere, -hurwitz_zeta_half(delta) * np.sqrt(delta) * normal2
-                          / self.k ** 2, 0.0)
+        at = np.flatnonzero(sphere)  # (only these pairs' samples are traced)
+        delta = np.maximum(np.where(near_l, w, 1.0 - w), 1e-3)[at]
+        factor = -hurwitz_zeta_half(delta) * np.sqrt(delta) * normal2[at] / self.k ** 2
         # d's derivative: the geometry's and the camera's alone, whose interior term is
         # singular at the rim (the materials' tables detached, the lights' values suspended;
         # the tracer attaches the camera's keys to the rays)
@@ -888,9 +888,14 @@ class Boundary:
         moving.geometry = table
         with dr.suspend_grad(*(value for light in self.lights
                                for value in traversed_values(light))):
-            d = self.tracer.trace(self.scene, self.film_rays(*inside, camera=False),
-                                  moving).color
-        return (d - dr.detach(d)) * jit_array(mi.Float, factor.astype(np.float32))
+            d = self.tracer.trace(self.scene, self.film_rays(inside[0][at], inside[1][at],
+                                                             camera=False), moving).color
+        term = (d - dr.detach(d)) * jit_array(mi.Float, factor.astype(np.float32))
+        # each pair's term (zero where none is traced)
+        index = np.cumsum(sphere) - 1
+        return dr.gather(mi.Color3f, term,
+                         jit_array(mi.UInt32, np.maximum(index, 0).astype(np.uint32)),
+                         jit_array(mi.Bool, sphere))
 
     def jump(self, L, R, axis, w, kind):
         """f_L - f_R across each pair's crossing: the colors of two rays traced just either
