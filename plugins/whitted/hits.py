@@ -119,6 +119,19 @@ def sphere_rows(to_world, uv=True):
     return center, axis, [[row[i][0] for i in range(3)] for row in (it[j] for j in range(4))]
 
 
+NO_SHAPE = 0xFFFFFFFF  # the shape id of no hit (a shape's id is smaller)
+
+
+def preliminary(t, uv, shape, prim):
+    """A PreliminaryIntersection3f of these fields, as the ray tracer gives them (``shape``:
+    a UInt32 id, NO_SHAPE: no hit, a null shape)."""
+    pi = dr.zeros(mi.PreliminaryIntersection3f, dr.width(t))
+    valid = shape != NO_SHAPE
+    pi.t, pi.prim_uv, pi.prim_index, pi.valid = t, uv, prim, valid
+    pi.shape = dr.reinterpret_array(mi.ShapePtr, dr.select(valid, shape, 0))
+    return pi
+
+
 def barycentrics(corners, p):
     """(b1, b2) of the point ``p`` in the plane of the triangle ``corners`` (p0, p1, p2): p =
     p0 + b1 (p1 - p0) + b2 (p2 - p0), by least squares (exact on the plane)."""
@@ -350,6 +363,37 @@ class HitTable:
         si.prim_index = pi.prim_index
         si.wi = si.to_local(-ray.d)
         return si
+
+    def known_hits(self, ray, shape, prim, t_near):
+        """The hits of ``ray`` on given primitives, solved from the table instead of asked
+        of the ray tracer (a PreliminaryIntersection3f for :meth:`intersect`, detached):
+        ``shape`` (a UInt32 id, NO_SHAPE: none) and ``prim`` per lane. A mesh face is
+        extended to its plane: the hit is where the ray meets that plane, wherever; a
+        sphere's is the root nearest ``t_near`` (:meth:`sphere_hit`). None (no hit) where
+        the ray meets neither in front of it."""
+        with dr.suspend_grad():
+            valid = (shape != NO_SHAPE) & (shape < self.size)
+            kind = dr.gather(mi.UInt32, self.kind, shape, valid)
+            row = dr.gather(mi.UInt32, self.first, shape, valid)
+            t, uv = mi.Float(t_near), mi.Point2f(0.0)
+            if self.has_meshes:
+                mesh = valid & ((kind & MESH) != 0)
+                _, corners = self.corners(row, prim, mesh)
+                p0, p1, p2 = corners
+                n = dr.cross(p1 - p0, p2 - p0)
+                t_m = dr.dot(n, p0 - ray.o) / dr.dot(n, ray.d)
+                t = dr.select(mesh, t_m, t)
+                uv = dr.select(mesh, mi.Point2f(*barycentrics(corners, ray(t_m))), uv)
+            if self.has_spheres:  # (the line meets the sphere: a real root)
+                sphere = valid & ((kind & SPHERE) != 0)
+                oc, d, radius = self.sphere_frame(row + prim, ray.o, ray.d, sphere)
+                b = dr.dot(oc, d)
+                meets = dr.square(b) >= dr.squared_norm(d) * (dr.squared_norm(oc)
+                                                                - dr.square(radius))
+                t = dr.select(sphere & ~meets, dr.nan, t)
+            valid &= (t > 0) & (t < dr.inf)
+            return preliminary(dr.select(valid, t, dr.inf), uv, dr.select(valid, shape, NO_SHAPE),
+                               prim)
 
     def uv_footprint(self, si, ray, active):
         """(duv_dx, duv_dy): the texture-space vectors from each mesh hit's uv to those where

@@ -46,10 +46,10 @@ import mitsuba as mi
 import numpy as np
 
 from .arrays import Assembled
+from .hits import NO_SHAPE, preliminary
 
 CAMERA_BYTES = 20  # t, uv (two floats), shape (NO_SHAPE: no hit), primitive: 4 bytes each
 SHADOW_BYTES = 8  # shape (NO_SHAPE: not blocked), primitive: 4 bytes each
-NO_SHAPE = 0xFFFFFFFF  # the recorded shape of a ray that hit nothing (a shape's id is smaller)
 
 
 def recording_bytes(lanes, lights):
@@ -176,20 +176,10 @@ class _Replayer:
 
     def camera(self, scene, ray, coherent):
         t, u, v, shape, prim = self.read(self.answers[0])
-        return _intersection(t, mi.Point2f(u, v), shape, prim)
+        return preliminary(t, mi.Point2f(u, v), shape, prim)
 
     def shadow(self, scene, light, ray, active):
         shape, prim = self.read(self.answers[1][light])
         # (t: not kept, any finite value where blocked; a blocker's distance has no reader)
-        return _intersection(dr.select(shape != NO_SHAPE, 0.0, dr.inf), mi.Point2f(0.0),
+        return preliminary(dr.select(shape != NO_SHAPE, 0.0, dr.inf), mi.Point2f(0.0),
                              shape, prim)
-
-
-def _intersection(t, uv, shape, prim):
-    """A PreliminaryIntersection3f of these fields, as the ray tracer gave them (shape
-    NO_SHAPE: no hit, a null shape)."""
-    pi = dr.zeros(mi.PreliminaryIntersection3f, dr.width(t))
-    valid = shape != NO_SHAPE
-    pi.t, pi.prim_uv, pi.prim_index, pi.valid = t, uv, prim, valid
-    pi.shape = dr.reinterpret_array(mi.ShapePtr, dr.select(valid, shape, 0))
-    return pi

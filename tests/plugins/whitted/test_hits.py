@@ -135,6 +135,59 @@ def test_derivatives_follow_the_ray_as_mitsubas(mitsuba, hits):
         np.testing.assert_allclose(b, a, rtol=1e-2, atol=1e-3)  # float32; grazing hits
 
 
+def test_known_hits_are_the_tracers_on_their_faces_and_extend_them(mitsuba, hits):
+    """HitTable.known_hits (the boundary terms' hits on the surface a pair sees): on the face
+    the ray tracer found, the same interaction -- the same bits on spheres (both solve the
+    root from the table), within float32 rounding on meshes (the plane's point instead of
+    Embree's); on a face the ray does not reach, the point of its plane (the triangle's z =
+    -2); on a sphere the ray's line misses, no hit."""
+    import drjit as dr
+
+    mi = mitsuba
+    from raymitsuba.plugins.whitted.hits import NO_SHAPE
+
+    scene, table, ray, want, got = hits
+    ids = dr.reinterpret_array(mi.UInt32, want.shape)
+    valid = np.array(want.is_valid())
+    known = table.intersect(scene, ray, True, table.known_hits(
+        ray, dr.select(want.is_valid(), ids, NO_SHAPE), want.prim_index, want.t))
+    assert np.array_equal(np.array(known.is_valid()), valid)
+    spheres = {dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]
+               for s in scene.shapes() if s.class_name() == "Sphere"}
+    on_sphere = np.isin(np.array(ids), list(spheres)) & valid
+    for name, value in fields(got).items():
+        a = np.array(value).reshape(-1, valid.size)
+        b = np.array(fields(known)[name]).reshape(-1, valid.size)
+        assert np.array_equal(a[:, on_sphere], b[:, on_sphere]), name
+        scale = 1e-4 * max(1.0, float(np.abs(a[:, valid]).max()))  # (t: ~10 units)
+        np.testing.assert_allclose(b[:, valid], a[:, valid], rtol=0, atol=scale, err_msg=name)
+
+    lanes = dr.width(ray.d)
+    triangle = [s for s in scene.shapes() if s.is_mesh() and s.face_count() == 1][0]
+    tri_id = dr.reinterpret_array(mi.UInt32, mi.ShapePtr(triangle))[0]
+    plane = table.known_hits(ray, dr.full(mi.UInt32, tri_id, lanes), dr.zeros(mi.UInt32, lanes),
+                             dr.full(mi.Float, 1.0, lanes))
+    point = np.array(ray(plane.t))
+    assert np.array(plane.is_valid()).all()  # (every ray goes towards -z)
+    np.testing.assert_allclose(point[2], -2.0, atol=1e-5)
+    assert (np.abs(point[0]) > 3).any()  # (beyond the triangle's corners)
+
+    sphere = [s for s in scene.shapes() if s.class_name() == "Sphere"][0]
+    sphere_id = dr.reinterpret_array(mi.UInt32, mi.ShapePtr(sphere))[0]
+    on = table.known_hits(ray, dr.full(mi.UInt32, sphere_id, lanes), dr.zeros(mi.UInt32, lanes),
+                          dr.full(mi.Float, 1.0, lanes))
+    row = table.rows_by_name[sphere.id()]
+    c = np.array(table.center).reshape(3, -1)[:, row].astype(np.float64)
+    r = float(np.array(table.radius)[row])
+    o = np.array(ray.o).reshape(3, -1).T.astype(np.float64)
+    d = np.array(ray.d).reshape(3, -1).T.astype(np.float64)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    miss = np.linalg.norm(np.cross(c - o, d), axis=1)  # the line's distance to the centre
+    clear = np.abs(miss - r) > 1e-4
+    assert np.array_equal(np.array(on.is_valid())[clear], (miss < r)[clear])
+    assert (miss < r).sum() > 50 and (miss > r).sum() > 500
+
+
 def test_a_shape_outside_the_table_falls_back_to_mitsuba(mitsuba):
     # Mitsuba's analytic disk: not in the table; the render still shades it.
     from raymitsuba.plugins.whitted.hits import HitTable
