@@ -247,6 +247,22 @@ def ring_points(width, height, k):
     return y, x
 
 
+def span(a, b):
+    """Lattice units between two lattice points (y, x) that lie on one row or column (numpy;
+    at least 1)."""
+    return np.maximum(np.abs(a[0] - b[0]) + np.abs(a[1] - b[1]), 1)
+
+
+def slope_across(w, at_l, at_r):
+    """g's slope across a pair's axis at its crossing, a fraction ``w`` of the way from L to
+    R: L's and R's centred differences ``at_l``, ``at_r`` (numpy) interpolated. Where one is
+    not finite (a neighbour's ray that sees nothing there, so g is undefined) the other's;
+    where neither is, 0 (the edge taken across the axis)."""
+    ok_l, ok_r = np.isfinite(at_l), np.isfinite(at_r)
+    at_l, at_r = np.where(ok_l, at_l, 0.0), np.where(ok_r, at_r, 0.0)
+    return np.where(ok_l & ok_r, (1.0 - w) * at_l + w * at_r, np.where(ok_l, at_l, at_r))
+
+
 def lattice_side(spp):
     """k for ``spp`` = k^2 samples per pixel (None: not a square lattice)."""
     k = int(round(spp ** 0.5))
@@ -802,16 +818,17 @@ class Boundary:
         along = np.where(bracket, (gp - gm) / (2.0 * eps), gr - gl)  # dg per lattice unit
         w = np.where(bracket, np.clip(w - eps + 2.0 * eps * gm / np.where(bracket, gm - gp, 1.0),
                                       0.0, 1.0), w)
-
-        def span(a, b):  # lattice units between two neighbours across the axis
-            return np.maximum(np.abs(a[0] - b[0]) + np.abs(a[1] - b[1]), 1)
-
-        across = (1.0 - w) * (gla - glb) / span(points["LA"], points["LB"]) \
-            + w * (gra - grb) / span(points["RA"], points["RB"])
+        across = slope_across(w, (gla - glb) / span(points["LA"], points["LB"]),
+                              (gra - grb) / span(points["RA"], points["RB"]))
         normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
         df = self.jump(L, R, axis, w, kind)
+        # (a pair whose g beside the crossing is undefined, a ray there seeing nothing its
+        # function reads, adds no term: selected out, as a product with 0 would carry NaN in
+        # forward mode)
+        valid &= np.isfinite(gm) & np.isfinite(gp)
         scale = np.where(valid, normal2 / (self.k ** 2 * np.where(valid, along, 1.0)), 0.0)
         rate = -(g_star - dr.detach(g_star)) * jit_array(mi.Float, scale.astype(np.float32))
+        rate = dr.select(jit_array(mi.Bool, valid), rate, 0.0)
         surrogate = mi.Color3f(*(jit_array(mi.Float, df[:, c]) for c in range(3))) * rate
         rim = self.rim_correction(terms, terms.geometry, kind, axis, L, R, w,
                                   np.where(valid, normal2, 0.0))

@@ -479,3 +479,42 @@ def test_a_camera_rays_lattice_point_is_its_pixels_sample(mi):
     x = (pixel % width) * k + sample % k
     assert np.array_equal(boundary.lattice_index(width, k, first, count).numpy(),
                           (y + 1) * (width * k + 2) + x + 1)
+
+
+def test_slope_across_reads_the_side_where_g_is_defined(mi):
+    from raymitsuba.plugins.whitted.boundary import slope_across
+
+    nan = float("nan")
+    at_l = np.array([1.0, nan, 1.0, nan, np.inf])
+    at_r = np.array([3.0, 3.0, nan, nan, 3.0])
+    np.testing.assert_array_equal(slope_across(0.25, at_l, at_r), [1.5, 3.0, 1.0, 0.0, 3.0])
+
+
+# A sphere on a lit floor (examples/fit_shape.py's scene) where an iterate of its fit put the
+# terminator (N.L = 0, where the sphere's top turns from the light) next to the silhouette: a
+# pair of samples on the sphere across the terminator has a neighbour above that sees only
+# the background, where g (N.L at a hit) is undefined. That fit once ended in NaN there.
+TERMINATOR_AT_THE_RIM = """\
+eye 0 1 6
+lookat 0 0 0
+fov 40
+background 0.2 0.3 0.4
+light 1 1 1 point 2 4 5
+light 0.2 0.2 0.2 ambient
+material 0.9 0.9 0.8 0.3 0.7 0 1 0 0 1
+translate 0 -1 0
+plane
+reset
+material 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1
+translate 0.1948937624692917 0.007960347458720207 -0.021213442087173462
+scale 0.8159410357475281 0.8159410357475281 0.8159410357475281
+sphere
+"""
+
+
+@pytest.mark.parametrize("key", ["translate2.offset", "scale1.factors"])
+def test_a_neighbour_that_sees_nothing_leaves_the_derivative_finite(mi, key):
+    grad = forward(mi, TERMINATOR_AT_THE_RIM, key, (0, 1, 0) if "offset" in key else (1, 1, 1),
+                   16, width=64, height=48)
+    assert np.all(np.isfinite(grad))
+    assert np.abs(grad).max() > 0
