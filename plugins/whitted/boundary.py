@@ -1007,7 +1007,7 @@ class Boundary:
         if (kind == CHECKER).any():
             choice = self.checker_crossing(terms, si, cells_at(self.cell, L),
                                            cells_at(self.cell, R),
-                                           kind == CHECKER, choice)
+                                           kind == CHECKER, choice, choices, "first")
         return choice
 
     @staticmethod
@@ -1113,7 +1113,8 @@ class Boundary:
         if (kind == CHAIN_CHECKER).any():
             cl, cr = (np.stack([picked([cell[c] for cell in self.chain_cell], d, p)
                                 for c in (0, 1)], -1) for p in (L, R))
-            g = self.checker_crossing(terms, final_si, cl, cr, kind == CHAIN_CHECKER, g)
+            g = self.checker_crossing(terms, final_si, cl, cr, kind == CHAIN_CHECKER, g,
+                                      choices, "chain")
         if (kind == CHAIN_SHADOW).any():
             index = d * len(self.lights) + light
             blocker = self.blocker(self.chain_lit, self.chain_occluder, index, L, R)
@@ -1121,18 +1122,21 @@ class Boundary:
                                      kind == CHAIN_SHADOW, g, choices, "chain")
         return g
 
-    def checker_crossing(self, terms, si, cl, cr, which, g):
+    def checker_crossing(self, terms, si, cl, cr, which, g, choices, name):
         """g = u / size - m (or v) of the pairs ``which`` (numpy mask), at the hits ``si`` of
-        the stacked rays (the size: at L's hit); cl, cr: the cells at L and R."""
+        the stacked rays (the size: at L's hit); cl, cr: the cells at L and R. ``choices``:
+        see g_at (the size, under ``name``)."""
         lanes = dr.width(si.t)
         count = len(which)
         coord = np.where(cl[:, 0] != cr[:, 0], 0, 1)
         line = np.maximum(cl, cr)[np.arange(count), coord].astype(np.float32)
-        slot = terms.surfaces.slot(si.shape, si.prim_index, si.is_valid())
-        size = dr.gather(mi.Float, terms.surfaces.layout.checker_size, slot)
-        pair = dr.arange(mi.UInt32, dr.width(size)) % dr.opaque(mi.UInt32, count)
-        size = dr.gather(mi.Float, size, pair)  # (L's: the first point set's lanes)
-        size = dr.select(size > 0, size, 1.0)
+        made = choices.get((name, "checker"))
+        if made is None:  # (L's: the first point set's lanes; not a parameter)
+            slot = terms.surfaces.slot(si.shape, si.prim_index, si.is_valid())
+            size = dr.gather(mi.Float, terms.surfaces.layout.checker_size, slot)
+            size = dr.gather(mi.Float, size, dr.arange(mi.UInt32, count))
+            made = choices[(name, "checker")] = (dr.select(size > 0, size, 1.0),)
+        size = on_lanes(made[0], lanes)
         u = dr.select(jit_array(mi.Bool, stacked(coord == 0, lanes)), si.uv.x, si.uv.y)
         return dr.select(jit_array(mi.Bool, stacked(which, lanes)),
                          u / size - jit_array(mi.Float, stacked(line, lanes)), g)

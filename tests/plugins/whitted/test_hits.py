@@ -186,6 +186,14 @@ def test_known_hits_are_the_tracers_on_their_faces_and_extend_them(mitsuba, hits
     clear = np.abs(miss - r) > 1e-4
     assert np.array_equal(np.array(on.is_valid())[clear], (miss < r)[clear])
     assert (miss < r).sum() > 50 and (miss > r).sum() > 500
+    # a sphere the line meets behind the ray (both roots t < 0): no hit, as for the tracer
+    back = mi.Ray3f(ray.o, -ray.d)
+    behind = table.known_hits(back, dr.full(mi.UInt32, sphere_id, lanes),
+                              dr.zeros(mi.UInt32, lanes), dr.full(mi.Float, 1.0, lanes))
+    assert not np.array(behind.is_valid()).any()
+    traced = scene.ray_intersect_preliminary(back)
+    found = np.array(dr.reinterpret_array(mi.UInt32, traced.shape)) == sphere_id
+    assert not (found & np.array(traced.is_valid())).any()
 
 
 def test_a_shape_outside_the_table_falls_back_to_mitsuba(mitsuba):
