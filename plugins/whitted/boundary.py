@@ -24,7 +24,9 @@ The lattice's own error where the interior derivative is singular -- a sphere's 
 the sphere or the camera moves -- is subtracted per pair (:meth:`Boundary.rim_correction`).
 
 Not covered (left out, documented in docs/gradients.md): the branches of the tree other
-than the specular chain, and a pair of samples with two edges between them.
+than the specular chain, and a pair of samples with two edges of different kinds between
+them (a checker line and a shadow edge); checker lines, however many, are a crossing each
+(:meth:`Boundary.one_crossing_per_line`).
 
 **The lattice.** The samples of all pixels form one uniform grid over the image, spacing
 1/k pixel (sample (sx, sy) of pixel (px, py) is lattice point X = px k + sx, Y = py k + sy).
@@ -137,6 +139,9 @@ RIM_LIMIT, FILM_ULPS = 2e-4, 4
 # the crossing's refinement: g at two points either side of it, this share of its distance
 # to the nearer sample away, at least REFINE_MIN lattice units (float32's g resolves it)
 REFINE, REFINE_MIN = 0.25, 0.005
+# a checker pair with more lines than this between its samples is left out (the pattern
+# finer than the lattice there: aliased; its lines' terms nearly cancel)
+CHECKER_LINES = 8
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
 
 
@@ -196,10 +201,12 @@ def crossed(cells, left, right):
         + (cells[1][left] != cells[1][right]).view(np.int8)
 
 
-def cells_at(cells, points):
-    """The (u, v) cells at lattice ``points`` ((y, x), numpy) of ``cells`` ((2, H k, W k)
-    planes): (P, 2)."""
-    return np.stack([cells[0][points], cells[1][points]], -1)
+def one_line(cl, cr):
+    """(coord, line) of the one checker line between the cells ``cl`` and ``cr`` ((P, 2)
+    each, numpy): the coordinate that changes (0: u, 1: v) and the larger cell's index in it
+    (see Boundary.one_crossing_per_line)."""
+    coord = np.where(cl[:, 0] != cr[:, 0], 0, 1)
+    return coord, np.maximum(cl, cr)[np.arange(len(cl)), coord]
 
 
 def nonzero(mask):
@@ -659,9 +666,36 @@ class Boundary:
             found.append(dict(axis=np.full(len(ly), axis), kind=kind[keep].astype(np.int64),
                               light=light[keep].astype(np.int64),
                               depth=depth[keep].astype(np.int64), **points))
-        return {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))
-                       if name in POINTS else np.concatenate([f[name] for f in found]))
-                for name in found[0]}
+        return self.one_crossing_per_line(
+            {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))
+                    if name in POINTS else np.concatenate([f[name] for f in found]))
+             for name in found[0]})
+
+    def one_crossing_per_line(self, pairs):
+        """``pairs`` with each checker pair repeated once per checker line between its two
+        samples (u lines, then v lines: where the pattern is finer than the lattice, or a
+        corner passes between them; at most CHECKER_LINES, else left out), and what each
+        entry's g is: ``coord`` (0: u, 1: v; -1: not a checker line) and ``line`` m, the
+        line's index (g = u / size - m: the line between the cells m - 1 and m). Each line
+        is a crossing of its own, its jump traced either side of it."""
+        L, R = pairs["L"], pairs["R"]
+        checker = pairs["kind"] == CHECKER
+        low, count = [], []
+        for plane in self.cell:
+            a, b = plane[L].astype(np.int64), plane[R].astype(np.int64)
+            low.append(np.minimum(a, b))
+            count.append(np.where(checker, np.abs(a - b), 0))
+        lines = count[0] + count[1]
+        entries = np.where(checker, np.where(lines <= CHECKER_LINES, lines, 0), 1)
+        index = np.repeat(np.arange(len(entries)), entries)
+        j = np.arange(len(index)) - np.repeat(np.cumsum(entries) - entries, entries)
+        u = j < count[0][index]
+        out = {name: tuple(a[index] for a in value) if name in POINTS else value[index]
+               for name, value in pairs.items()}
+        out["coord"] = np.where(checker[index], np.where(u, 0, 1), -1)
+        out["line"] = np.where(u, low[0][index] + 1 + j,
+                               low[1][index] + 1 + j - count[0][index]).astype(np.float32)
+        return out
 
     def chain_bounces(self):
         """How many bounces of the specular chain some chain reaches: those before the first
@@ -696,10 +730,11 @@ class Boundary:
         light = np.zeros(visibility.shape, self.light_type)
         kind[visibility] = VISIBILITY
         same = ~visibility & (self.shape[L] != NO_HIT)
-        # On one surface, a pair across one edge only: where a shadow edge and a checker
-        # line (or two shadow edges) pass between the same two samples, the jump f_L - f_R
-        # is the sum of both and belongs to neither alone (such pairs are left out: a
-        # share of the crossings that falls as 1/k).
+        # On one surface, a pair across one kind of edge only: where a shadow edge and a
+        # checker line (or two shadow edges) pass between the same two samples, the jump
+        # f_L - f_R is the sum of both and belongs to neither alone (such pairs are left
+        # out: a share of the crossings that falls as 1/k). Checker lines, however many,
+        # are one crossing each (see one_crossing_per_line).
         edges = np.zeros(visibility.shape, np.int16)
         for j in range(len(self.lights)):
             edge = same & (self.lit[j][L] != self.lit[j][R])
@@ -707,7 +742,7 @@ class Boundary:
             kind[edge], light[edge] = SHADOW, j
         lines = crossed(self.cell, L, R)  # u and v lines crossed
         checker = same & (lines > 0)
-        edges += lines * checker
+        edges += checker
         kind[checker] = CHECKER
         kind[same & (edges > 1)] = -1
         # Seen along the specular chain (mirrors, glass): the first bounce whose key
@@ -795,7 +830,8 @@ class Boundary:
         kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
         # what picks g (see g_at); its choices made from L's and R's values, kept for the
         # second pass
-        crossing = (L, R, kind, light, pairs["depth"][sl], {})
+        crossing = (L, R, kind, light, pairs["depth"][sl],
+                    (pairs["coord"][sl], pairs["line"][sl]), {})
         # g at the lattice points (detached): the crossing where it changes sign, linear
         # between L and R
         with dr.suspend_grad():
@@ -836,7 +872,7 @@ class Boundary:
             surrogate += rim
         return surrogate, self.spread(L, axis, w, np.abs(across) / np.maximum(np.abs(along), 1e-30))
 
-    def g_at(self, terms, sets, L, R, kind, light, depth, choices):
+    def g_at(self, terms, sets, L, R, kind, light, depth, line, choices):
         """g at the point sets ``sets`` (a list of (y, x) lattice coordinates, numpy, one
         point per pair) traced as one stack of rays: (a Float of len(sets) P lanes, point
         set i at lanes i P .. (i + 1) P - 1, attached as ``terms`` and the camera's keys are;
@@ -848,7 +884,7 @@ class Boundary:
         ray = self.film_rays(*(np.concatenate([point[i] for point in sets]) for i in range(2)))
         dr.eval(ray)
         si = _evaluated(self.hits_at(table, ray, L, R, kind))
-        g = self.crossing(table, terms, ray, si, L, R, kind, light, choices)
+        g = self.crossing(table, terms, ray, si, L, R, kind, light, line, choices)
         if (depth >= 0).any():
             g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light, choices)
         # (the choices made here evaluated with g: a later call reads them, not their graph)
@@ -995,7 +1031,7 @@ class Boundary:
             pixels.append(np.where(axis == 1, band * self.width + along, along * self.width + band))
         return np.stack(pixels, -1), np.stack(fractions, -1)
 
-    def crossing(self, table, terms, ray, si, L, R, kind, light, choices):
+    def crossing(self, table, terms, ray, si, L, R, kind, light, line, choices):
         """g at the stacked rays ``ray`` (see g_at), hitting ``si`` (a Float, attached)."""
         choice = self.visibility(table, ray, (self.shape[L], self.prim[L], self.t[L]),
                                  (self.shape[R], self.prim[R], self.t[R]), choices, "first")
@@ -1005,9 +1041,8 @@ class Boundary:
                                           choices, "first")
         # checker lines
         if (kind == CHECKER).any():
-            choice = self.checker_crossing(terms, si, cells_at(self.cell, L),
-                                           cells_at(self.cell, R),
-                                           kind == CHECKER, choice, choices, "first")
+            choice = self.checker_crossing(terms, si, *line, kind == CHECKER, choice,
+                                           choices, "first")
         return choice
 
     @staticmethod
@@ -1113,8 +1148,8 @@ class Boundary:
         if (kind == CHAIN_CHECKER).any():
             cl, cr = (np.stack([picked([cell[c] for cell in self.chain_cell], d, p)
                                 for c in (0, 1)], -1) for p in (L, R))
-            g = self.checker_crossing(terms, final_si, cl, cr, kind == CHAIN_CHECKER, g,
-                                      choices, "chain")
+            g = self.checker_crossing(terms, final_si, *one_line(cl, cr),
+                                      kind == CHAIN_CHECKER, g, choices, "chain")
         if (kind == CHAIN_SHADOW).any():
             index = d * len(self.lights) + light
             blocker = self.blocker(self.chain_lit, self.chain_occluder, index, L, R)
@@ -1122,14 +1157,13 @@ class Boundary:
                                      kind == CHAIN_SHADOW, g, choices, "chain")
         return g
 
-    def checker_crossing(self, terms, si, cl, cr, which, g, choices, name):
+    def checker_crossing(self, terms, si, coord, line, which, g, choices, name):
         """g = u / size - m (or v) of the pairs ``which`` (numpy mask), at the hits ``si`` of
-        the stacked rays (the size: at L's hit); cl, cr: the cells at L and R. ``choices``:
-        see g_at (the size, under ``name``)."""
+        the stacked rays (the size: at L's hit); coord (0: u, 1: v) and the line m per pair
+        (numpy). ``choices``: see g_at (the size, under ``name``)."""
         lanes = dr.width(si.t)
         count = len(which)
-        coord = np.where(cl[:, 0] != cr[:, 0], 0, 1)
-        line = np.maximum(cl, cr)[np.arange(count), coord].astype(np.float32)
+        line = line.astype(np.float32)
         made = choices.get((name, "checker"))
         if made is None:  # (L's: the first point set's lanes; not a parameter)
             slot = terms.surfaces.slot(si.shape, si.prim_index, si.is_valid())
