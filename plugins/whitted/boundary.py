@@ -201,14 +201,6 @@ def crossed(cells, left, right):
         + (cells[1][left] != cells[1][right]).view(np.int8)
 
 
-def one_line(cl, cr):
-    """(coord, line) of the one checker line between the cells ``cl`` and ``cr`` ((P, 2)
-    each, numpy): the coordinate that changes (0: u, 1: v) and the larger cell's index in it
-    (see Boundary.one_crossing_per_line)."""
-    coord = np.where(cl[:, 0] != cr[:, 0], 0, 1)
-    return coord, np.maximum(cl, cr)[np.arange(len(cl)), coord]
-
-
 def nonzero(mask):
     """(y, x) of the True entries of a 2-D mask, row-major (np.nonzero's, faster: one pass
     for flat positions, then their rows and columns)."""
@@ -674,19 +666,26 @@ class Boundary:
     def one_crossing_per_line(self, pairs):
         """``pairs`` with each checker pair repeated once per checker line between its two
         samples (u lines, then v lines: where the pattern is finer than the lattice, or a
-        corner passes between them; at most CHECKER_LINES, else left out), and what each
+        corner passes between them; at most CHECKER_LINES, else left out; along the
+        specular chain exactly one, else left out: through a glass ball's rim, where the
+        lines crowd and u is far from linear, their crossings added more error than they
+        took away, measured), and what each
         entry's g is: ``coord`` (0: u, 1: v; -1: not a checker line) and ``line`` m, the
         line's index (g = u / size - m: the line between the cells m - 1 and m). Each line
         is a crossing of its own, its jump traced either side of it."""
         L, R = pairs["L"], pairs["R"]
-        checker = pairs["kind"] == CHECKER
+        chain = pairs["kind"] == CHAIN_CHECKER
+        checker = (pairs["kind"] == CHECKER) | chain
+        depth = np.maximum(pairs["depth"], 0)
         low, count = [], []
-        for plane in self.cell:
-            a, b = plane[L].astype(np.int64), plane[R].astype(np.int64)
+        for c, plane in enumerate(self.cell):  # (the first hit's cells, or the bounce's)
+            a, b = (np.where(chain, picked([cells[c] for cells in self.chain_cell], depth, P)
+                             if chain.any() else 0, plane[P]).astype(np.int64) for P in (L, R))
             low.append(np.minimum(a, b))
             count.append(np.where(checker, np.abs(a - b), 0))
         lines = count[0] + count[1]
-        entries = np.where(checker, np.where(lines <= CHECKER_LINES, lines, 0), 1)
+        most = np.where(chain, 1, CHECKER_LINES)
+        entries = np.where(checker, np.where(lines <= most, lines, 0), 1)
         index = np.repeat(np.arange(len(entries)), entries)
         j = np.arange(len(index)) - np.repeat(np.cumsum(entries) - entries, entries)
         u = j < count[0][index]
@@ -747,8 +746,8 @@ class Boundary:
         kind[same & (edges > 1)] = -1
         # Seen along the specular chain (mirrors, glass): the first bounce whose key
         # differs, if the first hits are alike: total internal reflection switching at
-        # the surface the bounce leaves, else a visibility edge or one checker line (a
-        # pair across two edges at that bounce is left out).
+        # the surface the bounce leaves, else a visibility edge, checker lines or one
+        # shadow edge (a pair across edges of two kinds at that bounce is left out).
         depth = np.full(visibility.shape, -1, np.int8)
         pending = same & (edges == 0)
         for d in range(bounces):  # (past every chain's end: no pair)
@@ -765,11 +764,11 @@ class Boundary:
                 shadows += edge
                 light[pending & edge & ~tir] = j
             here = pending & (shape_differs | (lines > 0) | tir | (shadows > 0))
-            ok = here & ~tir & ((shape_differs & (lines >= 0))
-                                | ((lines + shadows) == 1))
+            ok = here & ~tir & (shape_differs | ((lines > 0) & (shadows == 0))
+                                | ((lines == 0) & (shadows == 1)))
             ok &= (cs_l != STOP) & (cs_r != STOP)
             kind[ok & shape_differs] = CHAIN_VISIBILITY
-            kind[ok & ~shape_differs & (lines == 1)] = CHAIN_CHECKER
+            kind[ok & ~shape_differs & (lines > 0)] = CHAIN_CHECKER
             kind[ok & ~shape_differs & (shadows == 1)] = CHAIN_SHADOW
             # total internal reflection switching at the bounce's surface: what the two
             # chains meet after it differs because of it
@@ -886,7 +885,8 @@ class Boundary:
         si = _evaluated(self.hits_at(table, ray, L, R, kind))
         g = self.crossing(table, terms, ray, si, L, R, kind, light, line, choices)
         if (depth >= 0).any():
-            g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light, choices)
+            g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light, line,
+                                    choices)
         # (the choices made here evaluated with g: a later call reads them, not their graph)
         dr.eval(g, [v for made in choices.values() for v in made if isinstance(v, dr.ArrayBase)])
         return g, dr.detach(g).numpy().astype(np.float64).reshape(len(sets), len(kind))
@@ -1121,7 +1121,8 @@ class Boundary:
         return dr.select(on_lanes(use_n, lanes), gn,
                          dr.select(on_lanes(use_f, lanes), gf, crease))
 
-    def chain_crossing(self, table, terms, ray, si, L, R, kind, depth, g, light, choices):
+    def chain_crossing(self, table, terms, ray, si, L, R, kind, depth, g, light, line,
+                       choices):
         """g of the pairs whose edge is seen along the specular chain, at bounce ``depth``:
         each ray's chain replayed, attached, then the visibility, checker or shadow function
         there (``light``: per pair, the light of a shadow), or (total internal reflection
@@ -1146,10 +1147,8 @@ class Boundary:
         g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_VISIBILITY, lanes)), vis, g)
         g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_TIR, lanes)), margin, g)
         if (kind == CHAIN_CHECKER).any():
-            cl, cr = (np.stack([picked([cell[c] for cell in self.chain_cell], d, p)
-                                for c in (0, 1)], -1) for p in (L, R))
-            g = self.checker_crossing(terms, final_si, *one_line(cl, cr),
-                                      kind == CHAIN_CHECKER, g, choices, "chain")
+            g = self.checker_crossing(terms, final_si, *line, kind == CHAIN_CHECKER, g,
+                                      choices, "chain")
         if (kind == CHAIN_SHADOW).any():
             index = d * len(self.lights) + light
             blocker = self.blocker(self.chain_lit, self.chain_occluder, index, L, R)

@@ -547,3 +547,26 @@ def test_each_checker_line_between_two_samples_is_a_crossing_of_its_own(mi):
     np.testing.assert_array_equal(out["coord"], [0, 1, 0, 0, 0, -1])
     np.testing.assert_array_equal(out["line"][:5], [1, 1, 2, 1, 2])
     np.testing.assert_array_equal(out["kind"][-1], boundary.VISIBILITY)
+
+
+def test_along_the_chain_a_checker_pair_needs_exactly_one_line(mi):
+    """At a bounce of the specular chain (its cells, not the first hit's), a pair across one
+    checker line is one crossing; across two (a corner, or two lines of one direction), left
+    out: through a glass ball's rim their crossings added more error than they took away."""
+    from types import SimpleNamespace
+
+    from raymitsuba.plugins.whitted import boundary
+
+    flat = np.zeros((1, 6), np.int32)
+    u = np.array([[0, 1, 1, 3, 0, 0]], np.int32)
+    v = np.array([[0, 0, 1, 1, 0, 0]], np.int32)
+    x = np.array([0, 1, 2])
+    pairs = dict(kind=np.full(3, boundary.CHAIN_CHECKER), light=np.zeros(3, np.int64),
+                 depth=np.zeros(3, np.int64), axis=np.ones(3),
+                 **{name: (np.zeros(3, np.int64), x + (name == "R")) for name in boundary.POINTS})
+    edges = SimpleNamespace(cell=(flat, flat), chain_cell=[(u, v)])
+    out = boundary.Boundary.one_crossing_per_line(edges, pairs)
+    # (0,0)->(1,0): u line 1; (1,0)->(1,1): v line 1; (1,1)->(3,1): two u lines, left out
+    np.testing.assert_array_equal(out["L"][1], [0, 1])
+    np.testing.assert_array_equal(out["coord"], [0, 1])
+    np.testing.assert_array_equal(out["line"], [1, 1])
