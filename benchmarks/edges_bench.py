@@ -1,7 +1,7 @@
 """Derivatives through moving edges: accuracy against finite differences, and cost.
 
     ./dev python benchmarks/edges_bench.py [--width 32 --height 24] [--cost-size 256x192]
-                                           [--only accuracy,cost]
+                                           [--only accuracy,cost] [--repeats 5]
 
 **Accuracy.** For each kind of discontinuity and parameter (a scene made for it), the
 derivative of the image along a fixed direction by forward-mode AD on the k x k lattice
@@ -105,7 +105,8 @@ def cost(mi, width, height, repeats=5):
     """The primal render and a gradient step as a fit takes it, on one loaded scene: new
     values of the keys (a move of 1e-3 either way), ``params.update()`` (the geometry moved,
     the Jacobians computed again), render and backward. Medians of ``repeats``, after two
-    steps that compile the kernels."""
+    steps that compile the kernels; wall time, and the process's CPU time (all its threads:
+    steadier than wall time on a shared machine)."""
     import drjit as dr
     import raymitsuba
 
@@ -131,7 +132,7 @@ def cost(mi, width, height, repeats=5):
         return surrogates(self, all_pairs, lo, hi)
 
     def step(i):
-        started = time.perf_counter()
+        started, cpu = time.perf_counter(), time.process_time()
         for key in keys:
             v = params[key]
             shift = 1e-3 if i % 2 == 0 else -1e-3
@@ -143,7 +144,7 @@ def cost(mi, width, height, repeats=5):
         dr.backward(dr.mean(dr.square(image - target), axis=None))
         dr.grad(params["camera.eye"]).numpy()
         done = time.perf_counter()
-        return done - started, moved - started
+        return done - started, moved - started, time.process_time() - cpu
 
     primal(), step(0), step(1)  # (compile the kernels)
     p = statistics.median(primal() for _ in range(repeats))
@@ -152,11 +153,13 @@ def cost(mi, width, height, repeats=5):
         steps = [step(i) for i in range(repeats)]
     finally:
         boundary.Boundary.surrogates = surrogates
-    s = statistics.median(t for t, _ in steps)
-    u = statistics.median(m for _, m in steps)
+    s = statistics.median(t for t, _, _ in steps)
+    u = statistics.median(m for _, m, _ in steps)
+    c = statistics.median(c for _, _, c in steps)
     print(f"\ncost at {width} x {height}, spp 16 (k = 4), medians of {repeats}: primal "
           f"{p * 1e3:.1f} ms, gradient step (translate2.offset, camera.eye) {s * 1e3:.1f} ms (of "
-          f"which the move, params.update(), {u * 1e3:.1f} ms), ratio {s / p:.1f}; boundary "
+          f"which the move, params.update(), {u * 1e3:.1f} ms; CPU time {c * 1e3:.1f} ms), "
+          f"ratio {s / p:.1f}; boundary "
           f"pairs {pairs[-1]} ({pairs[-1] / (width * height):.1f} per pixel)")
 
 
@@ -201,6 +204,7 @@ def main():
     ap.add_argument("--width", type=int, default=32)
     ap.add_argument("--height", type=int, default=24)
     ap.add_argument("--cost-size", default="256x192")
+    ap.add_argument("--repeats", type=int, default=5, help="steps timed (medians)")
     ap.add_argument("--only", default="accuracy,cost")
     ap.add_argument("--figure", default=None, help="also write the derivative images (PNG)")
     args = ap.parse_args()
@@ -212,7 +216,7 @@ def main():
         accuracy(mi, args.width, args.height)
     if "cost" in only:
         w, h = (int(v) for v in args.cost_size.split("x"))
-        cost(mi, w, h)
+        cost(mi, w, h, args.repeats)
     if args.figure:
         figure(mi, args.figure)
 
