@@ -673,28 +673,40 @@ class Boundary:
         entry's g is: ``coord`` (0: u, 1: v; -1: not a checker line) and ``line`` m, the
         line's index (g = u / size - m: the line between the cells m - 1 and m). Each line
         is a crossing of its own, its jump traced either side of it."""
-        L, R = pairs["L"], pairs["R"]
         chain = pairs["kind"] == CHAIN_CHECKER
         checker = (pairs["kind"] == CHECKER) | chain
-        depth = np.maximum(pairs["depth"], 0)
         low, count = [], []
-        for c, plane in enumerate(self.cell):  # (the first hit's cells, or the bounce's)
-            a, b = (np.where(chain, picked([cells[c] for cells in self.chain_cell], depth, P)
-                             if chain.any() else 0, plane[P]).astype(np.int64) for P in (L, R))
+        for c in (0, 1):
+            a, b = (self.checker_cells(c, pairs[name], chain, pairs["depth"])
+                    for name in ("L", "R"))
             low.append(np.minimum(a, b))
             count.append(np.where(checker, np.abs(a - b), 0))
         lines = count[0] + count[1]
         most = np.where(chain, 1, CHECKER_LINES)
         entries = np.where(checker, np.where(lines <= most, lines, 0), 1)
-        index = np.repeat(np.arange(len(entries)), entries)
+        if (entries == 1).all():  # (one line each: the pairs as they are)
+            index, out = np.arange(len(entries)), dict(pairs)
+        else:
+            index = np.repeat(np.arange(len(entries)), entries)
+            out = {name: tuple(a[index] for a in value) if name in POINTS else value[index]
+                   for name, value in pairs.items()}
         j = np.arange(len(index)) - np.repeat(np.cumsum(entries) - entries, entries)
         u = j < count[0][index]
-        out = {name: tuple(a[index] for a in value) if name in POINTS else value[index]
-               for name, value in pairs.items()}
         out["coord"] = np.where(checker[index], np.where(u, 0, 1), -1)
         out["line"] = np.where(u, low[0][index] + 1 + j,
                                low[1][index] + 1 + j - count[0][index]).astype(np.float32)
         return out
+
+    def checker_cells(self, c, points, chain, depth):
+        """The checker cells (coordinate ``c``: 0 u, 1 v; int64) at the lattice ``points``
+        (y, x) of each pair: the first hit's, or where ``chain``, those of the chain's
+        bounce ``depth``."""
+        cells = self.cell[c][points].astype(np.int64)
+        if chain.any():
+            at = np.flatnonzero(chain)
+            cells[at] = picked([bounce[c] for bounce in self.chain_cell], depth[at],
+                               tuple(p[at] for p in points))
+        return cells
 
     def chain_bounces(self):
         """How many bounces of the specular chain some chain reaches: those before the first
@@ -1162,7 +1174,6 @@ class Boundary:
         (numpy). ``choices``: see g_at (the size, under ``name``)."""
         lanes = dr.width(si.t)
         count = len(which)
-        line = line.astype(np.float32)
         made = choices.get((name, "checker"))
         if made is None:  # (L's: the first point set's lanes; not a parameter)
             slot = terms.surfaces.slot(si.shape, si.prim_index, si.is_valid())
