@@ -18,7 +18,9 @@ sum itself), and the per-pixel relative L2 error ||AD - ref|| / ||ref||.
 **Cost.** At 256 x 192 (``--cost-size``), k = 4 (spp 16): the primal render, and a gradient
 step as a fit takes it (new values, ``params.update()``, render + backward of an L2 loss)
 with respect to geometry keys (a translate and the eye), on one loaded scene: medians of 5,
-in this process, after two steps that compile the kernels, and their ratio.
+in this process, after two steps that compile the kernels, and their ratio; then the
+kernels' own execution times of a step by part (the render, the adjoint pass, the boundary
+terms) and the step's time outside kernels (Python, numpy, graph building, launches).
 """
 
 from __future__ import annotations
@@ -103,10 +105,13 @@ def accuracy(mi, width, height):
 
 def cost(mi, width, height, repeats=5):
     """The primal render and a gradient step as a fit takes it, on one loaded scene: new
-    values of the keys (a move of 1e-3 either way), ``params.update()`` (the geometry moved,
-    the Jacobians computed again), render and backward. Medians of ``repeats``, after two
-    steps that compile the kernels; wall time, and the process's CPU time (all its threads:
-    steadier than wall time on a shared machine)."""
+    values of the keys (a move of 1e-3 either way; new leaves, detached from the last
+    step's as an optimizer's are: a value computed from the last one would chain every
+    step's backward to all the earlier ones), ``params.update()`` (the geometry moved, the
+    Jacobians computed again), render and backward. Medians of ``repeats``, after two steps
+    that compile the kernels; wall time, and the process's CPU time (all its threads:
+    steadier than wall time on a shared machine). Then where a step's time goes: its
+    kernels' own execution times by part (:func:`kernel_times`), and the rest."""
     import drjit as dr
     import raymitsuba
 
@@ -131,18 +136,26 @@ def cost(mi, width, height, repeats=5):
             pairs.append(len(all_pairs["kind"]))
         return surrogates(self, all_pairs, lo, hi)
 
-    def step(i):
-        started, cpu = time.perf_counter(), time.process_time()
+    def move(i):
         for key in keys:
-            v = params[key]
+            v = dr.detach(params[key])  # (a new leaf, as an optimizer's step makes it)
             shift = 1e-3 if i % 2 == 0 else -1e-3
             params[key] = mi.Point3f(v.x + shift, v.y, v.z + shift)
             dr.enable_grad(params[key])
         params.update()
-        moved = time.perf_counter()
+
+    def render_and_backward(ran=lambda part: None):
         image = raymitsuba.render(scene)
+        ran("render")
         dr.backward(dr.mean(dr.square(image - target), axis=None))
         dr.grad(params["camera.eye"]).numpy()
+        ran("boundary terms")
+
+    def step(i):
+        started, cpu = time.perf_counter(), time.process_time()
+        move(i)
+        moved = time.perf_counter()
+        render_and_backward()
         done = time.perf_counter()
         return done - started, moved - started, time.process_time() - cpu
 
@@ -161,6 +174,48 @@ def cost(mi, width, height, repeats=5):
           f"which the move, params.update(), {u * 1e3:.1f} ms; CPU time {c * 1e3:.1f} ms), "
           f"ratio {s / p:.1f}; boundary "
           f"pairs {pairs[-1]} ({pairs[-1] / (width * height):.1f} per pixel)")
+    kernels = kernel_times(mi, move, render_and_backward, repeats)
+    print("the kernels' own execution times in a step (Dr.Jit's kernel history, medians of "
+          f"{repeats} more steps, synchronized after each part): " + ", ".join(
+              f"{part} {t:.1f} ms ({t / (p * 1e3):.2f} x the primal)" for part, t in kernels.items())
+          + f"; the step's time outside kernels (its wall time less theirs: Python, numpy, "
+          f"graph building, launches) {s * 1e3 - sum(kernels.values()):.1f} ms")
+
+
+def kernel_times(mi, move, render_and_backward, repeats):
+    """{part of a gradient step: its kernels' execution time, ms} (medians of ``repeats``
+    steps): the render (the primal kernels of mi.render's forward evaluation), the adjoint
+    pass (its chunks' kernels, up to the boundary terms), the boundary terms (every kernel
+    after). Each part is synchronized at its end (dr.sync_thread: waiting adds nothing to
+    a kernel's own time), so these steps are not the timed ones."""
+    import drjit as dr
+
+    from raymitsuba.plugins.whitted import boundary
+
+    times = {"render": [], "adjoint pass": [], "boundary terms": []}
+
+    def ran(part):
+        dr.sync_thread()
+        times[part].append(sum(k.get("execution_time", 0.0) for k in dr.kernel_history()))
+
+    backward = boundary.Boundary.backward
+
+    def timed(self, grad_in):
+        ran("adjoint pass")
+        return backward(self, grad_in)
+
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    boundary.Boundary.backward = timed
+    try:
+        for i in range(repeats):
+            move(i)
+            dr.sync_thread()
+            dr.kernel_history()  # (the move's kernels left out)
+            render_and_backward(ran)
+    finally:
+        boundary.Boundary.backward = backward
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+    return {part: statistics.median(t) for part, t in times.items()}
 
 
 def figure(mi, path, width=64, height=48):

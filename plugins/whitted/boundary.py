@@ -193,12 +193,25 @@ def spot_cosine(light, wi):
     return dr.dot(dr.normalize(light.direction), -wi)
 
 
+def flat(points, cols):
+    """The flat positions (row-major) of the lattice points ``points`` = (y, x) (numpy) in
+    arrays of ``cols`` columns: the lattice's arrays are read at these (:func:`at`)."""
+    return points[0] * cols + points[1]
+
+
+def at(plane, index):
+    """The entries of ``plane`` (a contiguous lattice array, (rows, cols, ...)) at the flat
+    positions ``index`` (numpy, see :func:`flat`): numpy's indexing by a pair of index
+    arrays (y, x) is about four times slower."""
+    return plane.reshape((-1,) + plane.shape[2:])[index]
+
+
 def crossed(cells, left, right):
-    """How many checker lines (u and v) lie between the cells at ``left`` and ``right``
-    (numpy index expressions of the lattice: views, or points (Y, X)) of ``cells`` (planes
-    of u and v cells, (2, ...)): an int8 array."""
-    return (cells[0][left] != cells[0][right]).view(np.int8) \
-        + (cells[1][left] != cells[1][right]).view(np.int8)
+    """How many checker lines (u and v) lie between the cells at the flat positions ``left``
+    and ``right`` (numpy, see :func:`flat`) of ``cells`` (planes of u and v cells, (2,
+    ...)): an int8 array."""
+    return (at(cells[0], left) != at(cells[0], right)).view(np.int8) \
+        + (at(cells[1], left) != at(cells[1], right)).view(np.int8)
 
 
 def nonzero(mask):
@@ -207,17 +220,17 @@ def nonzero(mask):
     return np.divmod(np.flatnonzero(mask), mask.shape[1])
 
 
-def picked(arrays, index, points):
-    """arrays[index[i]][y[i], x[i]] for each i (``arrays``: a list of lattice arrays, (H k,
-    W k, ...); ``index``, ``points`` = (y, x): numpy, per pair)."""
-    y, x = points
+def picked(arrays, index, positions):
+    """The entry of arrays[index[i]] at positions[i] for each i (``arrays``: a list of
+    lattice arrays, (H k, W k, ...); ``index``, ``positions``: numpy, per pair, the
+    positions flat: see :func:`flat`)."""
     if len(arrays) == 1:
-        return arrays[0][y, x]
+        return at(arrays[0], positions)
     out = np.empty((len(index),) + arrays[0].shape[2:], arrays[0].dtype)
     for j, array in enumerate(arrays):
-        at = index == j
-        if at.any():
-            out[at] = array[y[at], x[at]]
+        where = index == j
+        if where.any():
+            out[where] = at(array, positions[where])
     return out
 
 
@@ -701,11 +714,12 @@ class Boundary:
         """The checker cells (coordinate ``c``: 0 u, 1 v; int64) at the lattice ``points``
         (y, x) of each pair: the first hit's, or where ``chain``, those of the chain's
         bounce ``depth``."""
-        cells = self.cell[c][points].astype(np.int64)
+        positions = flat(points, self.cols)
+        cells = at(self.cell[c], positions).astype(np.int64)
         if chain.any():
-            at = np.flatnonzero(chain)
-            cells[at] = picked([bounce[c] for bounce in self.chain_cell], depth[at],
-                               tuple(p[at] for p in points))
+            where = np.flatnonzero(chain)
+            cells[where] = picked([bounce[c] for bounce in self.chain_cell], depth[where],
+                                  positions[where])
         return cells
 
     def chain_bounces(self):
@@ -736,11 +750,12 @@ class Boundary:
     def classify(self, L, R, bounces):
         """(kind (int8; -1: none, or left out), light, depth) of the pairs (L, R) (numpy
         (Y, X) each, one entry per pair): what edge lies between their samples."""
+        L, R = flat(L, self.cols), flat(R, self.cols)  # (read at: see flat)
         visibility = self.surface_differs(L, R, self.kind_of)
         kind = np.full(visibility.shape, -1, np.int8)  # (small types: a pass per array)
         light = np.zeros(visibility.shape, self.light_type)
         kind[visibility] = VISIBILITY
-        same = ~visibility & (self.shape[L] != NO_HIT)
+        same = ~visibility & (at(self.shape, L) != NO_HIT)
         # On one surface, a pair across one kind of edge only: where a shadow edge and a
         # checker line (or two shadow edges) pass between the same two samples, the jump
         # f_L - f_R is the sum of both and belongs to neither alone (such pairs are left
@@ -748,7 +763,7 @@ class Boundary:
         # are one crossing each (see one_crossing_per_line).
         edges = np.zeros(visibility.shape, np.int16)
         for j in range(len(self.lights)):
-            edge = same & (self.lit[j][L] != self.lit[j][R])
+            edge = same & (at(self.lit[j], L) != at(self.lit[j], R))
             edges += edge
             kind[edge], light[edge] = SHADOW, j
         lines = crossed(self.cell, L, R)  # u and v lines crossed
@@ -765,14 +780,14 @@ class Boundary:
         for d in range(bounces):  # (past every chain's end: no pair)
             if not pending.any():
                 break
-            cs_l, cs_r = self.chain_shape[d][L], self.chain_shape[d][R]
-            tir = self.chain_tir[d][L] != self.chain_tir[d][R]
+            cs_l, cs_r = at(self.chain_shape[d], L), at(self.chain_shape[d], R)
+            tir = at(self.chain_tir[d], L) != at(self.chain_tir[d], R)
             shape_differs = cs_l != cs_r
             lines = crossed(self.chain_cell[d], L, R)
             shadows = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
             for j in range(len(self.lights)):
                 lit = self.chain_lit[d * len(self.lights) + j]
-                edge = ~shape_differs & (lit[L] != lit[R])
+                edge = ~shape_differs & (at(lit, L) != at(lit, R))
                 shadows += edge
                 light[pending & edge & ~tir] = j
             here = pending & (shape_differs | (lines > 0) | tir | (shadows > 0))
@@ -800,19 +815,18 @@ class Boundary:
         return keep
 
     def surface_differs(self, L, R, kind_of):
-        """Whether the samples of the pairs (L, R) (numpy (Y, X) each) see different
-        surfaces: another shape (or one a miss), or another face of a flat mesh that is not
-        coplanar with the first."""
-        sl, sr = self.shape[L], self.shape[R]
+        """Whether the samples of the pairs (L, R) (numpy flat positions, see :func:`flat`)
+        see different surfaces: another shape (or one a miss), or another face of a flat mesh
+        that is not coplanar with the first."""
+        sl, sr = at(self.shape, L), at(self.shape, R)
         differs = sl != sr
-        faces = ~differs & (sl != NO_HIT) & (self.prim[L] != self.prim[R])
+        faces = ~differs & (sl != NO_HIT) & (at(self.prim, L) != at(self.prim, R))
         if not faces.any():
             return differs
         kind = kind_of[np.minimum(sl[faces], len(kind_of) - 1)]
         flat = (kind & MESH != 0) & (kind & SMOOTH == 0)
         where = np.flatnonzero(faces)[flat]
-        nl, nr = (np.stack([c[side[0][where], side[1][where]] for c in self.normal], -1)
-                  for side in (L, R))
+        nl, nr = (np.stack([at(c, side[where]) for c in self.normal], -1) for side in (L, R))
         differs[where[np.linalg.norm(nl - nr, axis=-1) > COPLANAR]] = True
         return differs
 
@@ -914,13 +928,15 @@ class Boundary:
         if not table.supported:  # (coherent: the stack's rays in the lattice's order)
             return self.tracer.intersect(self.scene, table, ray, coherent=True)
         lanes = dr.width(ray.d)
-        shape, prim = self.shape[L], self.prim[L]
+        L, R = flat(L, self.cols), flat(R, self.cols)
+        shape, prim = at(self.shape, L), at(self.prim, L)
         needed = kind != VISIBILITY
-        known = needed & (shape == self.shape[R]) & (prim == self.prim[R]) & (shape != NO_HIT)
+        known = needed & (shape == at(self.shape, R)) & (prim == at(self.prim, R)) \
+            & (shape != NO_HIT)
         pi = table.known_hits(ray, jit_array(mi.UInt32, stacked(np.where(known, shape, NO_HIT),
                                                                 lanes)),
                               jit_array(mi.UInt32, stacked(prim, lanes)),
-                              jit_array(mi.Float, stacked(self.t[L], lanes)))
+                              jit_array(mi.Float, stacked(at(self.t, L), lanes)))
         traced = jit_array(mi.Bool, stacked(needed, lanes)) & ~pi.is_valid()
         found = self.scene.ray_intersect_preliminary(ray, coherent=True, active=traced)
         return table.intersect(self.scene, ray, True, dr.select(traced, found, pi))
@@ -951,9 +967,9 @@ class Boundary:
         ad = self.tracer.geometry_ad
         if ad is None or not ad.moves():
             return None
-        near_l = self.t[L] <= self.t[R]
+        near_l = at(self.t, flat(L, self.cols)) <= at(self.t, flat(R, self.cols))
         inside = tuple(np.where(near_l, a, b) for a, b in zip(L, R))
-        shape = self.shape[inside]
+        shape = at(self.shape, flat(inside, self.cols))
         kind_of = self.kind_of
         sphere = (kind == VISIBILITY) & (shape != NO_HIT) & (normal2 > 0)
         sphere &= (kind_of[np.minimum(np.where(shape == NO_HIT, 0, shape), len(kind_of) - 1)]
@@ -967,12 +983,14 @@ class Boundary:
         sphere &= (inside[0] >= 1) & (inside[0] < rows - 1) & (inside[1] >= 1) \
             & (inside[1] < cols - 1)
         onward = (np.clip(y, 0, rows - 1), np.clip(x, 0, cols - 1))
-        sphere &= (self.shape[onward] == shape) & (self.prim[onward] == self.prim[inside])
+        onward, there = flat(onward, cols), flat(inside, cols)
+        sphere &= (at(self.shape, onward) == shape) \
+            & (at(self.prim, onward) == at(self.prim, there))
         if not sphere.any():
             return None
-        at = np.flatnonzero(sphere)  # (only these pairs' samples are traced)
-        delta = np.maximum(np.where(near_l, w, 1.0 - w), 1e-3)[at]
-        factor = -hurwitz_zeta_half(delta) * np.sqrt(delta) * normal2[at] / self.k ** 2
+        traced = np.flatnonzero(sphere)  # (only these pairs' samples are traced)
+        delta = np.maximum(np.where(near_l, w, 1.0 - w), 1e-3)[traced]
+        factor = -hurwitz_zeta_half(delta) * np.sqrt(delta) * normal2[traced] / self.k ** 2
         # d's derivative: the geometry's and the camera's alone, whose interior term is
         # singular at the rim (the materials' tables detached, the lights' values suspended;
         # the tracer attaches the camera's keys to the rays)
@@ -980,8 +998,8 @@ class Boundary:
         moving.geometry = table
         with dr.suspend_grad(*(value for light in self.lights
                                for value in traversed_values(light))):
-            d = self.tracer.trace(self.scene, self.film_rays(inside[0][at], inside[1][at],
-                                                             camera=False), moving).color
+            rays = self.film_rays(inside[0][traced], inside[1][traced], camera=False)
+            d = self.tracer.trace(self.scene, rays, moving).color
         term = (d - dr.detach(d)) * jit_array(mi.Float, factor.astype(np.float32))
         # each pair's term (zero where none is traced)
         index = np.cumsum(sphere) - 1
@@ -1011,7 +1029,8 @@ class Boundary:
             dr.eval(color, shape)
             colors = _host(color).reshape(2, count, 3)
             shapes = shape.numpy().reshape(2, count)
-        same = (shapes[0] == self.shape[L]) & (shapes[1] == self.shape[R])
+        same = (shapes[0] == at(self.shape, flat(L, self.cols))) \
+            & (shapes[1] == at(self.shape, flat(R, self.cols)))
         jump = colors[0] - colors[1]
         if not same.all():
             other = ~same
@@ -1045,10 +1064,12 @@ class Boundary:
 
     def crossing(self, table, terms, ray, si, L, R, kind, light, line, choices):
         """g at the stacked rays ``ray`` (see g_at), hitting ``si`` (a Float, attached)."""
-        choice = self.visibility(table, ray, (self.shape[L], self.prim[L], self.t[L]),
-                                 (self.shape[R], self.prim[R], self.t[R]), choices, "first")
+        left, right = ((at(self.shape, P), at(self.prim, P), at(self.t, P))
+                       for P in (flat(L, self.cols), flat(R, self.cols)))
+        choice = self.visibility(table, ray, left, right, choices, "first")
         if (kind == SHADOW).any():
-            blocker = self.blocker(self.lit, self.occluder, light, L, R)
+            blocker = self.blocker(self.lit, self.occluder, light, flat(L, self.cols),
+                                   flat(R, self.cols))
             choice = self.shadow_crossing(table, ray, si, light, blocker, kind == SHADOW, choice,
                                           choices, "first")
         # checker lines
@@ -1060,7 +1081,8 @@ class Boundary:
     @staticmethod
     def blocker(lit, occluder, index, L, R):
         """(shape, prim) per pair (numpy) of what blocks light ``index`` (per pair: the first
-        index of ``lit`` and ``occluder``) at the unlit one of L and R (NO_HIT: nothing)."""
+        index of ``lit`` and ``occluder``) at the unlit one of L and R (their flat positions,
+        see :func:`flat`; NO_HIT: nothing)."""
         blocked_l = ~picked(lit, index, L)
         return np.where(blocked_l[:, None], picked(occluder, index, L),
                         picked(occluder, index, R))
@@ -1153,6 +1175,7 @@ class Boundary:
                                  dr.select(at, ray.d, final_ray.d))
             final_si = _merge(at, si, final_si)
         d = np.maximum(depth, 0)
+        L, R = flat(L, self.cols), flat(R, self.cols)
         left = tuple(picked(a, d, L) for a in (self.chain_shape, self.chain_prim, self.chain_t))
         right = tuple(picked(a, d, R) for a in (self.chain_shape, self.chain_prim, self.chain_t))
         vis = self.visibility(table, final_ray, left, right, choices, "chain")

@@ -541,7 +541,7 @@ def test_each_checker_line_between_two_samples_is_a_crossing_of_its_own(mi):
                                                            boundary.CHECKER]),
                  light=np.zeros(5, np.int64), depth=np.full(5, -1), axis=np.ones(5),
                  **{name: (np.zeros(5, np.int64), x + (name == "R")) for name in boundary.POINTS})
-    edges = SimpleNamespace(cell=(u, v), chain_cell=[])
+    edges = SimpleNamespace(cell=(u, v), chain_cell=[], cols=u.shape[1])
     edges.checker_cells = functools.partial(boundary.Boundary.checker_cells, edges)
     out = boundary.Boundary.one_crossing_per_line(edges, pairs)
     # (0,0)->(1,1): a corner, u line 1 and v line 1; (1,1)->(2,1): u line 2; (2,1)->(0,1):
@@ -567,7 +567,7 @@ def test_along_the_chain_a_checker_pair_needs_exactly_one_line(mi):
     pairs = dict(kind=np.full(3, boundary.CHAIN_CHECKER), light=np.zeros(3, np.int64),
                  depth=np.zeros(3, np.int64), axis=np.ones(3),
                  **{name: (np.zeros(3, np.int64), x + (name == "R")) for name in boundary.POINTS})
-    edges = SimpleNamespace(cell=(flat, flat), chain_cell=[(u, v)])
+    edges = SimpleNamespace(cell=(flat, flat), chain_cell=[(u, v)], cols=u.shape[1])
     edges.checker_cells = functools.partial(boundary.Boundary.checker_cells, edges)
     out = boundary.Boundary.one_crossing_per_line(edges, pairs)
     # (0,0)->(1,0): u line 1; (1,0)->(1,1): v line 1; (1,1)->(3,1): two u lines, left out
