@@ -108,10 +108,11 @@ def cost(mi, width, height, repeats=5):
     values of the keys (a move of 1e-3 either way; new leaves, detached from the last
     step's as an optimizer's are: a value computed from the last one would chain every
     step's backward to all the earlier ones), ``params.update()`` (the geometry moved, the
-    Jacobians computed again), render and backward. Medians of ``repeats``, after two steps
-    that compile the kernels; wall time, and the process's CPU time (all its threads:
-    steadier than wall time on a shared machine). Then where a step's time goes: its
-    kernels' own execution times by part (:func:`kernel_times`), and the rest."""
+    Jacobians computed again), render and backward. Medians of ``repeats`` of each, the two
+    alternated, after two steps that compile the kernels; wall time, and the process's CPU
+    time (all its threads: steadier than wall time on a shared machine). Then where a step's
+    time goes: its kernels' own execution times by part (:func:`kernel_times`), and the
+    rest."""
     import drjit as dr
     import raymitsuba
 
@@ -160,12 +161,16 @@ def cost(mi, width, height, repeats=5):
         return done - started, moved - started, time.process_time() - cpu
 
     primal(), step(0), step(1)  # (compile the kernels)
-    p = statistics.median(primal() for _ in range(repeats))
+    # (alternated, so that both see the same share of a shared machine)
+    primals, steps = [], []
     boundary.Boundary.surrogates = counted
     try:
-        steps = [step(i) for i in range(repeats)]
+        for i in range(repeats):
+            primals.append(primal())
+            steps.append(step(i))
     finally:
         boundary.Boundary.surrogates = surrogates
+    p = statistics.median(primals)
     s = statistics.median(t for t, _, _ in steps)
     u = statistics.median(m for _, m, _ in steps)
     c = statistics.median(c for _, _, c in steps)
@@ -175,11 +180,12 @@ def cost(mi, width, height, repeats=5):
           f"ratio {s / p:.1f}; boundary "
           f"pairs {pairs[-1]} ({pairs[-1] / (width * height):.1f} per pixel)")
     kernels = kernel_times(mi, move, render_and_backward, repeats)
+    parts = ", ".join(f"{part} {t:.1f} ms ({t / (p * 1e3):.2f} x the primal)"
+                      for part, t in kernels.items())
     print("the kernels' own execution times in a step (Dr.Jit's kernel history, medians of "
-          f"{repeats} more steps, synchronized after each part): " + ", ".join(
-              f"{part} {t:.1f} ms ({t / (p * 1e3):.2f} x the primal)" for part, t in kernels.items())
-          + f"; the step's time outside kernels (its wall time less theirs: Python, numpy, "
-          f"graph building, launches) {s * 1e3 - sum(kernels.values()):.1f} ms")
+          f"{repeats} more steps, synchronized after each part): {parts}; the step's time "
+          "outside kernels (its wall time less theirs: Python, numpy, graph building, "
+          f"launches) {s * 1e3 - sum(kernels.values()):.1f} ms")
 
 
 def kernel_times(mi, move, render_and_backward, repeats):
