@@ -529,10 +529,10 @@ class Boundary:
         out = np.zeros((len(lane), 3), np.float32)
         ring = (y < 0) | (y >= self.height * k) | (x < 0) | (x >= self.width * k)
         for first, color in self.colors:
-            at = ~ring & (lane >= first) & (lane < first + dr.width(color))
-            if at.any():
-                index = jit_array(mi.UInt32, (lane[at] - first).astype(np.uint32))
-                out[at] = _host(dr.gather(mi.Color3f, color, index))
+            inside = ~ring & (lane >= first) & (lane < first + dr.width(color))
+            if inside.any():
+                index = jit_array(mi.UInt32, (lane[inside] - first).astype(np.uint32))
+                out[inside] = _host(dr.gather(mi.Color3f, color, index))
         if ring.any():  # (traced: outside the image, the adjoint pass did not)
             with dr.suspend_grad():
                 color = self.tracer.trace(self.scene, self.film_rays(points[0][ring],
@@ -825,8 +825,8 @@ class Boundary:
         if not faces.any():
             return differs
         kind = kind_of[np.minimum(sl[faces], len(kind_of) - 1)]
-        flat = (kind & MESH != 0) & (kind & SMOOTH == 0)
-        where = np.flatnonzero(faces)[flat]
+        planar = (kind & MESH != 0) & (kind & SMOOTH == 0)
+        where = np.flatnonzero(faces)[planar]
         nl, nr = (np.stack([at(c, side[where]) for c in self.normal], -1) for side in (L, R))
         differs[where[np.linalg.norm(nl - nr, axis=-1) > COPLANAR]] = True
         return differs
@@ -1167,14 +1167,14 @@ class Boundary:
         bounce = stacked(depth, lanes)
         final_ray, final_si, margin = ray, si, mi.Float(0.0)
         for d in range(int(depth.max()) + 1):
-            at = jit_array(mi.Bool, bounce == d)
-            margin = dr.select(at, self.refraction_margin(terms, si, ray), margin)
+            ends = jit_array(mi.Bool, bounce == d)  # (the lanes whose chain ends here)
+            margin = dr.select(ends, self.refraction_margin(terms, si, ray), margin)
             ray, _, _ = self.chain_step(terms, si, ray)
             dr.eval(ray)
             si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
-            final_ray = mi.Ray3f(dr.select(at, ray.o, final_ray.o),
-                                 dr.select(at, ray.d, final_ray.d))
-            final_si = _merge(at, si, final_si)
+            final_ray = mi.Ray3f(dr.select(ends, ray.o, final_ray.o),
+                                 dr.select(ends, ray.d, final_ray.d))
+            final_si = _merge(ends, si, final_si)
         d = np.maximum(depth, 0)
         L, R = flat(L, self.cols), flat(R, self.cols)
         left = tuple(picked(a, d, L) for a in (self.chain_shape, self.chain_prim, self.chain_t))
