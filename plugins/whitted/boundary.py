@@ -374,6 +374,20 @@ def _merge(mask, si, other):
     return out
 
 
+class Ends:
+    """The two samples of each pair of a block, L and R: their lattice points (``L``, ``R``:
+    (y, x), numpy), flat positions (``l``, ``r``: see :func:`flat`) and what their first
+    hits are (``shape``, ``prim``, ``t``: (at L, at R) each), read once for the block: g's
+    evaluations, the one-sided colors and the rim correction all read them."""
+
+    def __init__(self, boundary, L, R):
+        self.L, self.R = L, R
+        self.l, self.r = flat(L, boundary.cols), flat(R, boundary.cols)
+        self.shape, self.prim, self.t = (
+            (at(plane, self.l), at(plane, self.r))
+            for plane in (boundary.shape, boundary.prim, boundary.t))
+
+
 class Boundary:
     """The boundary terms of one adjoint pass over a ``width`` x ``height`` image sampled on
     the k x k lattice (``spp`` = k^2) of ``sensor`` (see the module docstring), forming the
@@ -864,11 +878,11 @@ class Boundary:
         sl = slice(lo, hi)
         count = hi - lo
         points = {name: tuple(a[sl] for a in pairs[name]) for name in POINTS}
-        L, R = points["L"], points["R"]
+        L, ends = points["L"], Ends(self, points["L"], points["R"])
         kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
         # what picks g (see g_at); its choices made from L's and R's values, kept for the
         # second pass
-        crossing = (L, R, kind, light, pairs["depth"][sl],
+        crossing = (ends, kind, light, pairs["depth"][sl],
                     (pairs["coord"][sl], pairs["line"][sl]), {})
         # g at the lattice points (detached): the crossing where it changes sign, linear
         # between L and R
@@ -895,7 +909,7 @@ class Boundary:
         across = slope_across(w, (gla - glb) / span(points["LA"], points["LB"]),
                               (gra - grb) / span(points["RA"], points["RB"]))
         normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
-        df = self.jump(L, R, axis, w, kind)
+        df = self.jump(ends, axis, w, kind)
         # (a pair whose g beside the crossing is undefined, a ray there seeing nothing its
         # function reads, adds no term: selected out, as a product with 0 would carry NaN in
         # forward mode)
@@ -904,52 +918,50 @@ class Boundary:
         rate = -(g_star - dr.detach(g_star)) * jit_array(mi.Float, scale.astype(np.float32))
         rate = dr.select(jit_array(mi.Bool, valid), rate, 0.0)
         surrogate = mi.Color3f(*(jit_array(mi.Float, df[:, c]) for c in range(3))) * rate
-        rim = self.rim_correction(terms, terms.geometry, kind, axis, L, R, w,
+        rim = self.rim_correction(terms, terms.geometry, kind, axis, ends, w,
                                   np.where(valid, normal2, 0.0))
         if rim is not None:
             surrogate += rim
         return surrogate, self.spread(L, axis, w, np.abs(across) / np.maximum(np.abs(along), 1e-30))
 
-    def g_at(self, terms, sets, L, R, kind, light, depth, line, choices):
+    def g_at(self, terms, sets, ends, kind, light, depth, line, choices):
         """g at the point sets ``sets`` (a list of (y, x) lattice coordinates, numpy, one
-        point per pair) traced as one stack of rays: (a Float of len(sets) P lanes, point
-        set i at lanes i P .. (i + 1) P - 1, attached as ``terms`` and the camera's keys are;
-        its values as numpy (len(sets), P)). ``choices`` (a dict): the picks made from L's
-        and R's values (which function, which edge of a face) by an earlier call with the
-        same pairs, or empty: made here, from the first two sets (then L and R), and kept
-        in it."""
+        point per pair; ``ends``: the pairs' :class:`Ends`) traced as one stack of rays: (a
+        Float of len(sets) P lanes, point set i at lanes i P .. (i + 1) P - 1, attached as
+        ``terms`` and the camera's keys are; its values as numpy (len(sets), P)).
+        ``choices`` (a dict): the picks made from L's and R's values (which function, which
+        edge of a face) by an earlier call with the same pairs, or empty: made here, from
+        the first two sets (then L and R), and kept in it."""
         table = terms.geometry
         ray = self.film_rays(*(np.concatenate([point[i] for point in sets]) for i in range(2)))
         dr.eval(ray)
-        si = _evaluated(self.hits_at(table, ray, L, R, kind))
-        g = self.crossing(table, terms, ray, si, L, R, kind, light, line, choices)
+        si = _evaluated(self.hits_at(table, ray, ends, kind))
+        g = self.crossing(table, terms, ray, si, ends, kind, light, line, choices)
         if (depth >= 0).any():
-            g = self.chain_crossing(table, terms, ray, si, L, R, kind, depth, g, light, line,
+            g = self.chain_crossing(table, terms, ray, si, ends, kind, depth, g, light, line,
                                     choices)
         # (the choices made here evaluated with g: a later call reads them, not their graph)
         dr.eval(g, [v for made in choices.values() for v in made if isinstance(v, dr.ArrayBase)])
         return g, dr.detach(g).numpy().astype(np.float64).reshape(len(sets), len(kind))
 
-    def hits_at(self, table, ray, L, R, kind):
+    def hits_at(self, table, ray, ends, kind):
         """The surface interactions of g_at's stacked rays ``ray``, a point set after another,
-        for the pairs (L, R) of ``kind``. Where L and R see one face of one shape (every kind
-        but a visibility edge of the first hit, mostly), each ray's hit on that face, solved
-        from the table (``HitTable.known_hits``: no ray tracing; g then is the function of
-        that surface's, smooth where another hides it or where the face ends); elsewhere, and
-        where the ray does not meet that face's plane or sphere, by the ray tracer. A
-        visibility edge's rays have none (its g reads the rays only)."""
+        for the pairs (L, R) of ``kind`` (their :class:`Ends`). Where L and R see one face
+        of one shape (every kind but a visibility edge of the first hit, mostly), each ray's
+        hit on that face, solved from the table (``HitTable.known_hits``: no ray tracing; g
+        then is the function of that surface's, smooth where another hides it or where the
+        face ends); elsewhere, and where the ray does not meet that face's plane or sphere,
+        by the ray tracer. A visibility edge's rays have none (its g reads the rays only)."""
         if not table.supported:  # (coherent: the stack's rays in the lattice's order)
             return self.tracer.intersect(self.scene, table, ray, coherent=True)
         lanes = dr.width(ray.d)
-        L, R = flat(L, self.cols), flat(R, self.cols)
-        shape, prim = at(self.shape, L), at(self.prim, L)
+        shape, prim = ends.shape[0], ends.prim[0]
         needed = kind != VISIBILITY
-        known = needed & (shape == at(self.shape, R)) & (prim == at(self.prim, R)) \
-            & (shape != NO_HIT)
+        known = needed & (shape == ends.shape[1]) & (prim == ends.prim[1]) & (shape != NO_HIT)
         pi = table.known_hits(ray, jit_array(mi.UInt32, stacked(np.where(known, shape, NO_HIT),
                                                                 lanes)),
                               jit_array(mi.UInt32, stacked(prim, lanes)),
-                              jit_array(mi.Float, stacked(at(self.t, L), lanes)))
+                              jit_array(mi.Float, stacked(ends.t[0], lanes)))
         traced = jit_array(mi.Bool, stacked(needed, lanes)) & ~pi.is_valid()
         found = self.scene.ray_intersect_preliminary(ray, coherent=True, active=traced)
         return table.intersect(self.scene, ray, True, dr.select(traced, found, pi))
@@ -959,7 +971,7 @@ class Boundary:
         """The lattice points (y, x) ``offset`` lattice units from L along each pair's axis."""
         return (np.where(axis == 1, L[0], L[0] + offset), np.where(axis == 1, L[1] + offset, L[1]))
 
-    def rim_correction(self, terms, table, kind, axis, L, R, w, normal2):
+    def rim_correction(self, terms, table, kind, axis, ends, w, normal2):
         """The lattice's error on the rim of a sphere (or ellipsoid) that moves across the
         rays (zero-valued Color3f surrogates per pair, or None).
 
@@ -980,9 +992,9 @@ class Boundary:
         ad = self.tracer.geometry_ad
         if ad is None or not ad.moves():
             return None
-        near_l = at(self.t, flat(L, self.cols)) <= at(self.t, flat(R, self.cols))
-        inside = tuple(np.where(near_l, a, b) for a, b in zip(L, R))
-        shape = at(self.shape, flat(inside, self.cols))
+        near_l = ends.t[0] <= ends.t[1]
+        inside = tuple(np.where(near_l, a, b) for a, b in zip(ends.L, ends.R))
+        shape = np.where(near_l, *ends.shape)
         kind_of = self.kind_of
         sphere = (kind == VISIBILITY) & (shape != NO_HIT) & (normal2 > 0)
         sphere &= (kind_of[np.minimum(np.where(shape == NO_HIT, 0, shape), len(kind_of) - 1)]
@@ -996,9 +1008,9 @@ class Boundary:
         sphere &= (inside[0] >= 1) & (inside[0] < rows - 1) & (inside[1] >= 1) \
             & (inside[1] < cols - 1)
         onward = (np.clip(y, 0, rows - 1), np.clip(x, 0, cols - 1))
-        onward, there = flat(onward, cols), flat(inside, cols)
+        onward = flat(onward, cols)
         sphere &= (at(self.shape, onward) == shape) \
-            & (at(self.prim, onward) == at(self.prim, there))
+            & (at(self.prim, onward) == np.where(near_l, *ends.prim))
         if not sphere.any():
             return None
         traced = np.flatnonzero(sphere)  # (only these pairs' samples are traced)
@@ -1020,7 +1032,7 @@ class Boundary:
                          jit_array(mi.UInt32, np.maximum(index, 0).astype(np.uint32)),
                          jit_array(mi.Bool, sphere))
 
-    def jump(self, L, R, axis, w, kind):
+    def jump(self, ends, axis, w, kind):
         """f_L - f_R across each pair's crossing: the colors of two rays traced just either
         side of it (LIMIT lattice units, RIM_LIMIT for a visibility edge of the surface seen;
         within the pair; both sides stacked, one trace),
@@ -1029,7 +1041,7 @@ class Boundary:
         rim = max(RIM_LIMIT, FILM_ULPS * self.k * max(self.width, self.height) * 2.0 ** -24)
         limit = np.where(kind == VISIBILITY, rim, LIMIT)
         step = np.minimum(limit, 0.5 * np.minimum(w, 1.0 - w))
-        sides = [self.along_axis(L, axis, w + offset) for offset in (-step, step)]
+        sides = [self.along_axis(ends.L, axis, w + offset) for offset in (-step, step)]
         seen = []  # (the shape each side's ray sees, from the trace's own hits)
 
         def first_hit(si, ray, hit, shadows):
@@ -1042,13 +1054,12 @@ class Boundary:
             dr.eval(color, shape)
             colors = _host(color).reshape(2, count, 3)
             shapes = shape.numpy().reshape(2, count)
-        same = (shapes[0] == at(self.shape, flat(L, self.cols))) \
-            & (shapes[1] == at(self.shape, flat(R, self.cols)))
+        same = (shapes[0] == ends.shape[0]) & (shapes[1] == ends.shape[1])
         jump = colors[0] - colors[1]
         if not same.all():
             other = ~same
-            jump[other] = self.colors_at((L[0][other], L[1][other])) \
-                - self.colors_at((R[0][other], R[1][other]))
+            jump[other] = self.colors_at(tuple(p[other] for p in ends.L)) \
+                - self.colors_at(tuple(p[other] for p in ends.R))
         return jump
 
     def spread(self, L, axis, w, slope):
@@ -1075,14 +1086,12 @@ class Boundary:
             pixels.append(np.where(axis == 1, band * self.width + along, along * self.width + band))
         return np.stack(pixels, -1), np.stack(fractions, -1)
 
-    def crossing(self, table, terms, ray, si, L, R, kind, light, line, choices):
+    def crossing(self, table, terms, ray, si, ends, kind, light, line, choices):
         """g at the stacked rays ``ray`` (see g_at), hitting ``si`` (a Float, attached)."""
-        left, right = ((at(self.shape, P), at(self.prim, P), at(self.t, P))
-                       for P in (flat(L, self.cols), flat(R, self.cols)))
+        left, right = ((ends.shape[i], ends.prim[i], ends.t[i]) for i in (0, 1))
         choice = self.visibility(table, ray, left, right, choices, "first")
         if (kind == SHADOW).any():
-            blocker = self.blocker(self.lit, self.occluder, light, flat(L, self.cols),
-                                   flat(R, self.cols))
+            blocker = self.blocker(self.lit, self.occluder, light, ends.l, ends.r)
             choice = self.shadow_crossing(table, ray, si, light, blocker, kind == SHADOW, choice,
                                           choices, "first")
         # checker lines
@@ -1168,7 +1177,7 @@ class Boundary:
         return dr.select(on_lanes(use_n, lanes), gn,
                          dr.select(on_lanes(use_f, lanes), gf, crease))
 
-    def chain_crossing(self, table, terms, ray, si, L, R, kind, depth, g, light, line,
+    def chain_crossing(self, table, terms, ray, si, ends, kind, depth, g, light, line,
                        choices):
         """g of the pairs whose edge is seen along the specular chain, at bounce ``depth``:
         each ray's chain replayed, attached, then the visibility, checker or shadow function
@@ -1179,16 +1188,16 @@ class Boundary:
         bounce = stacked(depth, lanes)
         final_ray, final_si, margin = ray, si, mi.Float(0.0)
         for d in range(int(depth.max()) + 1):
-            ends = jit_array(mi.Bool, bounce == d)  # (the lanes whose chain ends here)
-            margin = dr.select(ends, self.refraction_margin(terms, si, ray), margin)
+            last = jit_array(mi.Bool, bounce == d)  # (the lanes whose chain ends here)
+            margin = dr.select(last, self.refraction_margin(terms, si, ray), margin)
             ray, _, _ = self.chain_step(terms, si, ray)
             dr.eval(ray)
             si = _evaluated(self.tracer.intersect(self.scene, table, ray, coherent=False))
-            final_ray = mi.Ray3f(dr.select(ends, ray.o, final_ray.o),
-                                 dr.select(ends, ray.d, final_ray.d))
-            final_si = _merge(ends, si, final_si)
+            final_ray = mi.Ray3f(dr.select(last, ray.o, final_ray.o),
+                                 dr.select(last, ray.d, final_ray.d))
+            final_si = _merge(last, si, final_si)
         d = np.maximum(depth, 0)
-        L, R = flat(L, self.cols), flat(R, self.cols)
+        L, R = ends.l, ends.r
         left = tuple(picked(a, d, L) for a in (self.chain_shape, self.chain_prim, self.chain_t))
         right = tuple(picked(a, d, R) for a in (self.chain_shape, self.chain_prim, self.chain_t))
         vis = self.visibility(table, final_ray, left, right, choices, "chain")
