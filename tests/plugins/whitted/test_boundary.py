@@ -574,3 +574,17 @@ def test_along_the_chain_a_checker_pair_needs_exactly_one_line(mi):
     np.testing.assert_array_equal(out["L"][1], [0, 1])
     np.testing.assert_array_equal(out["coord"], [0, 1])
     np.testing.assert_array_equal(out["line"], [1, 1])
+
+
+def test_a_terms_weight_is_the_adjoint_of_its_pixels_by_its_fractions(mi):
+    """spread_adjoint: sum_j fraction[n, j] grad_in[pixel[n, j]], the adjoint of spreading a
+    term over its pixels (Boundary.spread), against numpy's einsum of the same."""
+    from raymitsuba.plugins.whitted import boundary
+
+    rng = np.random.default_rng(5)
+    grad_in = rng.random((48, 3)).astype(np.float32)
+    pixel, fraction = rng.integers(0, 48, (200, 3)), rng.random((200, 3))
+    want = np.einsum("nj,njc->nc", fraction, grad_in[pixel])
+    got = boundary.spread_adjoint(grad_in, pixel, fraction)
+    assert got.dtype == np.float32
+    np.testing.assert_allclose(got, want, rtol=1e-6)
