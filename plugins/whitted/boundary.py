@@ -385,6 +385,20 @@ def _merge(mask, si, other):
     return out
 
 
+class Faces:
+    """Primitives (shape, prim), one per lane (numpy ids; NO_HIT: none), on the device once
+    for every function of them that g reads (:meth:`Boundary.inside`, :meth:`Boundary.depth`,
+    :meth:`Boundary.crossed_edge`): whether there is one (``valid``), its kind bits and first
+    row in the geometry table ``table``, and the primitive (UInt32)."""
+
+    def __init__(self, table, shape, prim):
+        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        self.valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
+        self.kind = dr.gather(mi.UInt32, table.kind, ids, self.valid)
+        self.row = dr.gather(mi.UInt32, table.first, ids, self.valid)
+        self.prim = jit_array(mi.UInt32, prim.astype(np.uint32))
+
+
 class Ends:
     """The two samples of each pair of a block, L and R: their lattice points (``L``, ``R``:
     (y, x), numpy), flat positions (``l``, ``r``: see :func:`flat`) and what their first
@@ -1146,10 +1160,11 @@ class Boundary:
             else:
                 crosses = None
             edge = made[1] if made is not None else \
-                self.crossed_edge(table, shadow, blocker[:, 0], blocker[:, 1])
+                self.crossed_edge(table, shadow, Faces(table, blocker[:, 0], blocker[:, 1]))
             choices[(name, "shadow", j)] = (crosses, edge)
-            gs = self.inside(table, shadow, stacked(blocker[:, 0], lanes),
-                             stacked(blocker[:, 1], lanes), on_lanes(edge, lanes))
+            gs = self.inside(table, shadow, Faces(table, stacked(blocker[:, 0], lanes),
+                                                  stacked(blocker[:, 1], lanes)),
+                             on_lanes(edge, lanes))
             g = dr.select(jit_array(mi.Bool, stacked(mask, lanes)),
                           dr.select(unblocked, facing, gs), g)
         return g
@@ -1165,26 +1180,24 @@ class Boundary:
         n_shape, n_prim = (np.where(near_is_l, a, b) for a, b in zip(left[:2], right[:2]))
         f_shape, f_prim = (np.where(near_is_l, b, a) for a, b in zip(left[:2], right[:2]))
         made = choices.get((name, "visibility"))
-        if made is None:
-            n_edge = self.crossed_edge(table, ray, n_shape, n_prim)
-            f_edge = self.crossed_edge(table, ray, f_shape, f_prim)
-        else:
-            n_edge, f_edge, use_n, use_f = made
         if made is None:  # N's function where its sign differs between L and R, else F's
+            near, far = Faces(table, n_shape, n_prim), Faces(table, f_shape, f_prim)
+            n_edge = self.crossed_edge(table, ray, near)
+            f_edge = self.crossed_edge(table, ray, far)
             with dr.suspend_grad():
-                g_l, g_r = (
-                    [self.inside(table, rays, shape, prim, edge)
-                     for shape, prim, edge in ((n_shape, n_prim, n_edge), (f_shape, f_prim, f_edge))]
-                    for rays in at_l_and_r(ray, len(f_shape)))
+                g_l, g_r = ([self.inside(table, rays, faces, edge)
+                             for faces, edge in ((near, n_edge), (far, f_edge))]
+                            for rays in at_l_and_r(ray, len(f_shape)))
             use_n = signs_differ(g_l[0], g_r[0])
             use_f = ~use_n & jit_array(mi.Bool, f_shape < STOP) & signs_differ(g_l[1], g_r[1])
             choices[(name, "visibility")] = (n_edge, f_edge, use_n, use_f)
-        n_shape_s, n_prim_s, f_shape_s, f_prim_s = (
-            stacked(a, lanes) for a in (n_shape, n_prim, f_shape, f_prim))
-        gn = self.inside(table, ray, n_shape_s, n_prim_s, on_lanes(n_edge, lanes))
-        gf = self.inside(table, ray, f_shape_s, f_prim_s, on_lanes(f_edge, lanes))
-        crease = self.depth(table, ray, n_shape_s, n_prim_s) \
-            - self.depth(table, ray, f_shape_s, f_prim_s)
+        else:
+            n_edge, f_edge, use_n, use_f = made
+        near, far = (Faces(table, stacked(shape, lanes), stacked(prim, lanes))
+                     for shape, prim in ((n_shape, n_prim), (f_shape, f_prim)))
+        gn = self.inside(table, ray, near, on_lanes(n_edge, lanes))
+        gf = self.inside(table, ray, far, on_lanes(f_edge, lanes))
+        crease = self.depth(table, ray, near) - self.depth(table, ray, far)
         return dr.select(on_lanes(use_n, lanes), gn,
                          dr.select(on_lanes(use_f, lanes), gf, crease))
 
@@ -1241,14 +1254,11 @@ class Boundary:
         return dr.select(jit_array(mi.Bool, stacked(which, lanes)),
                          u / size - jit_array(mi.Float, stacked(line, lanes)), g)
 
-    def inside(self, table, ray, shape, prim, edge=None):
-        """The inside function of primitive (shape, prim) for each ray (numpy ids): > 0 where
+    def inside(self, table, ray, faces, edge=None):
+        """The inside function of each ray's primitive (``faces``: :class:`Faces`): > 0 where
         the ray's line meets it (see the module docstring). For a triangle, ``edge`` (an
         Int32 per lane: 0, 1, 2, or -1 for the least of the three) picks the edge function."""
-        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-        valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
-        kind = dr.gather(mi.UInt32, table.kind, ids, valid)
-        row = dr.gather(mi.UInt32, table.first, ids, valid)
+        valid, kind, row, prim = faces.valid, faces.kind, faces.row, faces.prim
         out = mi.Float(-1.0)
         d = dr.normalize(ray.d)
         if table.has_spheres:
@@ -1270,48 +1280,41 @@ class Boundary:
     @staticmethod
     def sphere_frame(table, row, prim, o, d, sphere):
         """Each lane's ray (o, d) in the frame of its sphere (``HitTable.sphere_frame``):
-        row ``row + prim`` (numpy ``prim``: 0 for a Mitsuba sphere, the sphere's index in a
+        row ``row + prim`` (UInt32 ``prim``: 0 for a Mitsuba sphere, the sphere's index in a
         sphere set)."""
-        row = row + jit_array(mi.UInt32, prim.astype(np.uint32))
-        return table.sphere_frame(row, o, d, sphere)
+        return table.sphere_frame(row + prim, o, d, sphere)
 
     def edge_functions(self, table, ray, d, row, prim, mesh):
         """The three normalized edge functions of each lane's face, signed to be > 0 inside."""
-        _, (p0, p1, p2) = table.corners(row, jit_array(mi.UInt32, prim.astype(np.uint32)), mesh)
+        _, (p0, p1, p2) = table.corners(row, prim, mesh)
         side = dr.dot(dr.detach(dr.cross(p1 - p0, p2 - p0)), dr.detach(d))
         sigma = dr.select(side <= 0, 1.0, -1.0)
         return [sigma * dr.dot(dr.cross(a - ray.o, b - ray.o), d) / dr.norm(b - a)
                 for a, b in ((p0, p1), (p1, p2), (p2, p0))]
 
-    def crossed_edge(self, table, ray, shape, prim):
-        """Per pair (an Int32 of P lanes, on the device): the edge of the face (shape, prim)
-        (numpy) whose function changes sign between the rays of L and R (of the stacked rays
-        ``ray``; the first such; -1: none, or not a face)."""
-        count = len(shape)
+    def crossed_edge(self, table, ray, faces):
+        """Per pair (an Int32 of P lanes, on the device): the edge of its face (``faces``:
+        :class:`Faces`, one per pair) whose function changes sign between the rays of L and
+        R (of the stacked rays ``ray``; the first such; -1: none, or not a face)."""
+        count = dr.width(faces.prim)
         if not table.has_meshes:
             return dr.full(mi.Int32, -1, count)
         with dr.suspend_grad():
-            ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-            valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
-            kind = dr.gather(mi.UInt32, table.kind, ids, valid)
-            row = dr.gather(mi.UInt32, table.first, ids, valid)
-            mesh = valid & ((kind & MESH) != 0)
+            mesh = faces.valid & ((faces.kind & MESH) != 0)
             sides = []
             for rays in at_l_and_r(ray, count):  # (L's, then R's)
                 d = dr.normalize(dr.detach(rays.d))
                 rays = mi.Ray3f(dr.detach(rays.o), d)
-                sides.append(self.edge_functions(table, rays, d, row, prim, mesh))
+                sides.append(self.edge_functions(table, rays, d, faces.row, faces.prim, mesh))
             edge = mi.Int32(-1)
             for i in (2, 1, 0):  # (the first edge that flips)
                 edge = dr.select(signs_differ(sides[0][i], sides[1][i]), i, edge)
             return dr.select(mesh, edge, -1)
 
-    def depth(self, table, ray, shape, prim):
-        """The distance along each ray to the primitive (shape, prim)'s plane or sphere."""
-        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-        valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
-        kind = dr.gather(mi.UInt32, table.kind, ids, valid)
-        row = dr.gather(mi.UInt32, table.first, ids, valid)
+    def depth(self, table, ray, faces):
+        """The distance along each ray to its primitive's (``faces``: :class:`Faces`) plane
+        or sphere."""
+        valid, kind, row, prim = faces.valid, faces.kind, faces.row, faces.prim
         out = mi.Float(0.0)
         if table.has_spheres:
             sphere = valid & ((kind & SPHERE) != 0)
@@ -1321,7 +1324,7 @@ class Boundary:
             out = dr.select(sphere, (-b - root) / a, out)
         if table.has_meshes:
             mesh = valid & ((kind & MESH) != 0)
-            _, (p0, p1, p2) = table.corners(row, jit_array(mi.UInt32, prim.astype(np.uint32)), mesh)
+            _, (p0, p1, p2) = table.corners(row, prim, mesh)
             n = dr.cross(p1 - p0, p2 - p0)
             out = dr.select(mesh, dr.dot(n, p0 - ray.o) / dr.dot(n, ray.d), out)
         return out
