@@ -393,9 +393,7 @@ class Faces:
 
     def __init__(self, table, shape, prim):
         ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
-        self.valid = jit_array(mi.Bool, shape != NO_HIT) & (ids < table.size)
-        self.kind = dr.gather(mi.UInt32, table.kind, ids, self.valid)
-        self.row = dr.gather(mi.UInt32, table.first, ids, self.valid)
+        self.valid, self.kind, self.row = table.entries(ids, jit_array(mi.Bool, shape != NO_HIT))
         self.prim = jit_array(mi.UInt32, prim.astype(np.uint32))
 
 

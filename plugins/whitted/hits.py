@@ -330,16 +330,20 @@ class HitTable:
                 self.ellipsoid = jit_array(mi.Bool, ellipsoid)
 
     # -- the hits ----------------------------------------------------------------------------
+    def entries(self, shape_id, valid):
+        """(valid, kind, row) of each lane's shape (a UInt32 registry id, where ``valid``):
+        the lanes whose shape the table holds, its kind bits and its first row."""
+        valid = valid & (shape_id < self.size)
+        return (valid, dr.gather(mi.UInt32, self.kind, shape_id, valid),
+                dr.gather(mi.UInt32, self.first, shape_id, valid))
+
     def intersect(self, scene, ray, coherent=False, pi=None):
         """The surface interaction of each ray (``supported`` must be True); ``pi``: the
         rays' closest hits, if already found (else the ray tracer is asked)."""
         if pi is None:
             pi = scene.ray_intersect_preliminary(ray, coherent=coherent)
-        valid = pi.is_valid()
         shape_id = dr.reinterpret_array(mi.UInt32, pi.shape)
-        valid &= shape_id < self.size
-        kind = dr.gather(mi.UInt32, self.kind, shape_id, valid)
-        row = dr.gather(mi.UInt32, self.first, shape_id, valid)
+        valid, kind, row = self.entries(shape_id, pi.is_valid())
         attached = self.moving or dr.grad_enabled(ray.o, ray.d)
         si = dr.zeros(mi.SurfaceInteraction3f, dr.width(pi.t))
         t, p, n, shading_n, uv = pi.t, mi.Point3f(0.0), mi.Normal3f(0.0), mi.Normal3f(0.0), \
@@ -372,9 +376,7 @@ class HitTable:
         sphere's is the root nearest ``t_near`` (:meth:`sphere_hit`). None (no hit) where
         the ray meets neither in front of it."""
         with dr.suspend_grad():
-            valid = (shape != NO_SHAPE) & (shape < self.size)
-            kind = dr.gather(mi.UInt32, self.kind, shape, valid)
-            row = dr.gather(mi.UInt32, self.first, shape, valid)
+            valid, kind, row = self.entries(shape, shape != NO_SHAPE)
             t, uv = mi.Float(t_near), mi.Point2f(0.0)
             if self.has_meshes:
                 mesh = valid & ((kind & MESH) != 0)
