@@ -16,11 +16,14 @@ the sum of the terms' sizes (sum |w ref|: a derivative of both signs may nearly 
 sum itself), and the per-pixel relative L2 error ||AD - ref|| / ||ref||.
 
 **Cost.** At 256 x 192 (``--cost-size``), k = 4 (spp 16): the primal render, and a gradient
-step as a fit takes it (new values, ``params.update()``, render + backward of an L2 loss)
-with respect to geometry keys (a translate and the eye), on one loaded scene: medians of 5,
-in this process, after two steps that compile the kernels, and their ratio; then the
-kernels' own execution times of a step by part (the render, the adjoint pass, the boundary
-terms) and the step's time outside kernels (Python, numpy, graph building, launches).
+step as a fit takes it (new values, ``params.update()``, render + backward of an L2 loss),
+on one loaded scene, for each of COST_KEYS: a geometry key (the ball's translate: the camera
+still, only the ball's edges move) and a geometry key with the camera's (the eye: every
+edge moves). Medians of 5, in this process, after two steps that compile the kernels; the
+ratio of render + backward to the primal (the step less the move), and of the whole step;
+then the kernels' own execution times of a step by part (the render, the adjoint pass, the
+boundary terms) and the step's time outside kernels (Python, numpy, graph building,
+launches).
 """
 
 from __future__ import annotations
@@ -55,6 +58,8 @@ light 1 1 1 point 2 3 9
 sphere 0.1 0.05 0 1.3
 """
 TRIANGLE = FLAT + "rotateZ 10\ntriangle -1.1 -1 0  1.3 -0.7 0.3  0.2 1.2 0\n"
+# the keys of the cost's gradient steps (see the module docstring)
+COST_KEYS = (("translate2.offset",), ("translate2.offset", "camera.eye"))
 
 
 
@@ -103,22 +108,21 @@ def accuracy(mi, width, height):
                   f"{relative_l2(grad, reference):.2%} |", flush=True)
 
 
-def cost(mi, width, height, repeats=5):
-    """The primal render and a gradient step as a fit takes it, on one loaded scene: new
-    values of the keys (a move of 1e-3 either way; new leaves, detached from the last
-    step's as an optimizer's are: a value computed from the last one would chain every
-    step's backward to all the earlier ones), ``params.update()`` (the geometry moved, the
-    Jacobians computed again), render and backward. Medians of ``repeats`` of each, the two
-    alternated, after two steps that compile the kernels; wall time, and the process's CPU
-    time (all its threads: steadier than wall time on a shared machine). Then where a step's
-    time goes: its kernels' own execution times by part (:func:`kernel_times`), and the
-    rest."""
+def cost(mi, width, height, keys, repeats=5):
+    """The primal render and a gradient step with respect to ``keys`` as a fit takes it, on
+    one loaded scene: new values of the keys (a move of 1e-3 either way; new leaves,
+    detached from the last step's as an optimizer's are: a value computed from the last one
+    would chain every step's backward to all the earlier ones), ``params.update()`` (the
+    geometry moved, the Jacobians computed again), render and backward. Medians of
+    ``repeats`` of each, the two alternated, after two steps that compile the kernels; wall
+    time, and the process's CPU time (all its threads: steadier than wall time on a shared
+    machine). Then where a step's time goes: its kernels' own execution times by part
+    (:func:`kernel_times`), and the rest."""
     import drjit as dr
     import raymitsuba
 
     from raymitsuba.plugins.whitted import boundary
 
-    keys = ("translate2.offset", "camera.eye")
     plain = raymitsuba.load(SCENE, width=width, height=height, spp=16)
 
     def primal():
@@ -149,7 +153,7 @@ def cost(mi, width, height, repeats=5):
         image = raymitsuba.render(scene)
         ran("render")
         dr.backward(dr.mean(dr.square(image - target), axis=None))
-        dr.grad(params["camera.eye"]).numpy()
+        dr.grad(params[keys[-1]]).numpy()
         ran("boundary terms")
 
     def step(i):
@@ -174,11 +178,12 @@ def cost(mi, width, height, repeats=5):
     s = statistics.median(t for t, _, _ in steps)
     u = statistics.median(m for _, m, _ in steps)
     c = statistics.median(c for _, _, c in steps)
-    print(f"\ncost at {width} x {height}, spp 16 (k = 4), medians of {repeats}: primal "
-          f"{p * 1e3:.1f} ms, gradient step (translate2.offset, camera.eye) {s * 1e3:.1f} ms (of "
-          f"which the move, params.update(), {u * 1e3:.1f} ms; CPU time {c * 1e3:.1f} ms), "
-          f"ratio {s / p:.1f}; boundary "
-          f"pairs {pairs[-1]} ({pairs[-1] / (width * height):.1f} per pixel)")
+    r = statistics.median(t - m for t, m, _ in steps)  # (render + backward)
+    print(f"\ncost at {width} x {height}, spp 16 (k = 4), medians of {repeats}, keys "
+          f"{', '.join(keys)}: primal {p * 1e3:.1f} ms; render + backward {r * 1e3:.1f} ms, "
+          f"ratio {r / p:.2f}; the whole step {s * 1e3:.1f} ms (with the move, "
+          f"params.update(), {u * 1e3:.1f} ms; CPU time {c * 1e3:.1f} ms), ratio {s / p:.2f}; "
+          f"boundary pairs {pairs[-1]} ({pairs[-1] / (width * height):.2f} per pixel)")
     kernels = kernel_times(mi, move, render_and_backward, repeats)
     parts = ", ".join(f"{part} {t:.1f} ms ({t / (p * 1e3):.2f} x the primal)"
                       for part, t in kernels.items())
@@ -277,7 +282,8 @@ def main():
         accuracy(mi, args.width, args.height)
     if "cost" in only:
         w, h = (int(v) for v in args.cost_size.split("x"))
-        cost(mi, w, h, args.repeats)
+        for keys in COST_KEYS:
+            cost(mi, w, h, keys, args.repeats)
     if args.figure:
         figure(mi, args.figure)
 

@@ -17,6 +17,7 @@ module             what it owns
 ``antialias``      which pixels adaptive anti-aliasing refines, and how; its plan
 ``geometry_ad``    the geometry and camera keys' derivatives, attached to hits and rays
 ``boundary``       the boundary terms of moving edges on the k x k lattice
+``support``        which pixels of an adjoint pass can have an interior derivative
 ``arrays``         host arrays handed to Dr.Jit: private, aligned copies (one kernel each)
 =================  ===================================================================
 """

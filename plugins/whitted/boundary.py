@@ -46,8 +46,11 @@ X). These keys take memory (BYTES_PER_SAMPLE per sample): a lattice whose keys e
 memory budget is refused (BudgetError) before anything is traced.
 
 **Pairs.** Two lattice neighbours (in a row or a column) whose keys differ have an edge
-between them. For each such pair a smooth signed *crossing function* g(ray, theta) is
-chosen, whose sign differs between the two samples:
+between them. Only the edges that some key with its gradient enabled moves form pairs:
+the kinds it moves (:func:`moving_kinds`), and, the camera still, an edge of what moves
+(:meth:`Boundary.moving_edges`): any other's term is zero. For each such pair a smooth
+signed *crossing function* g(ray, theta) is chosen, whose sign differs between the two
+samples:
 
 * a visibility edge of the nearer surface N (the other sample's ray misses N's primitive):
   N's inside function -- r - |(c - o) x d| for a sphere, the least of the three normalized
@@ -158,12 +161,17 @@ def moving_kinds(tracer, scene):
     if tracer.surfaces is not None and any(  # eta moves what is seen through glass
             dr.grad_enabled(material.ior) for material in tracer.surfaces.layout.materials):
         kinds |= {CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW}
-    for emitter in scene.emitters():
-        for name in ("position", "direction"):
-            value = getattr(emitter, name, None)
-            if value is not None and dr.grad_enabled(value):
-                kinds |= {SHADOW, CHAIN_SHADOW}
+    if any(light_moves(emitter) for emitter in scene.emitters()):
+        kinds |= {SHADOW, CHAIN_SHADOW}
     return kinds
+
+
+def light_moves(emitter):
+    """Whether a key with its gradient enabled moves ``emitter`` (its position or direction:
+    its shadow edges, terminator and cone)."""
+    return any(dr.grad_enabled(value) for value in
+               (getattr(emitter, name, None) for name in ("position", "direction"))
+               if value is not None)
 
 
 def hurwitz_zeta_half(q):
@@ -414,21 +422,33 @@ class Ends:
 class Boundary:
     """The boundary terms of one adjoint pass over a ``width`` x ``height`` image sampled on
     the k x k lattice (``spp`` = k^2) of ``sensor`` (see the module docstring), forming the
-    pairs of ``kinds`` (:func:`moving_kinds`)."""
+    pairs of ``kinds`` (:func:`moving_kinds`); ``terms``: the scene's detached terms, if
+    already built."""
 
-    def __init__(self, tracer, scene, sensor, width, height, spp, budget, kinds):
+    def __init__(self, tracer, scene, sensor, width, height, spp, budget, kinds, terms=None):
         self.tracer, self.scene, self.sensor = tracer, scene, sensor
         self.width, self.height, self.k = width, height, lattice_side(spp)
         # the lattice's arrays: its (H k) x (W k) samples and the ring around them
         self.rows, self.cols = height * self.k + 2, width * self.k + 2
-        with dr.suspend_grad():
-            self.terms = tracer.scene_terms(scene)  # detached: the keys, the one-sided colors
+        if terms is None:  # detached: the keys, the one-sided colors (a primal render's)
+            with dr.suspend_grad():
+                terms = tracer.scene_terms(scene)
+        self.terms = terms
         self.lights = self.terms.direct
         self.kind_of = self.terms.geometry.kind_host  # HitTable kind bits by shape id
         # the kinds of pairs formed, as a table by kind + 1 (-1: no pair)
         self.formed = np.zeros(KINDS + 1, bool)
         self.formed[np.array(sorted(kinds), int) + 1] = True
         self.light_type = np.min_scalar_type(max(len(self.lights) - 1, 0))  # (a light's index)
+        # What the keys with their gradients enabled move (see moving_edges): the camera,
+        # the shapes (by registry id; the last entry: NO_HIT, nothing) and the lights
+        ad = tracer.geometry_ad
+        self.camera_moves = ad is not None and ad.camera_moves()
+        self.shape_moves = np.zeros(len(self.kind_of) + 1, bool)
+        if ad is not None:
+            ids = self.terms.geometry.id_by_name
+            self.shape_moves[[ids[name] for name in ad.moving_shapes()]] = True
+        self.light_moves = np.array([light_moves(light) for light in self.lights], bool)
         per_sample = BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights)
         need = width * height * spp * per_sample
         # the specular chain's keys are traced in blocks of at most this many samples (their
@@ -450,13 +470,21 @@ class Boundary:
         # the samples' colors as the adjoint pass left them: (first lane, Color3f) per chunk,
         # a lane per camera ray in pixel order (read where a pair's jump needs them)
         self.colors = []
-        # the first hits' keys recorded by the adjoint pass (recorder) and the ring's
-        # (trace_ring): {name: Dr.Jit array, an entry per lattice point, row-major}
+        # the first hits' keys recorded by the adjoint pass (recorder), or by the primal
+        # render before it (adopt), and the ring's (trace_ring): {name: Dr.Jit array, an
+        # entry per lattice point, row-major}
         self.recorded = {}
+        self.adopted = False  # whether they are those a primal render recorded (adopt)
         self.chain_shape, self.chain_prim, self.chain_t, self.chain_cell = [], [], [], []
         self.chain_tir, self.chain_lit, self.chain_occluder = [], [], []
 
     # -- the keys --------------------------------------------------------------------------------
+    def adopt(self, keys):
+        """Take every sample's keys and color from ``keys``, a Boundary of the same image
+        whose :meth:`recorder` and :meth:`collect` the primal render before this pass ran
+        (``Whitted._boundary``): this pass records none."""
+        self.recorded, self.colors, self.adopted = keys.recorded, keys.colors, True
+
     def collect(self, job, start, count, color):
         """Keep the colors of a chunk's samples (``color``: one lane per camera ray of the
         job's pixels start .. start + count - 1; the job: a range of pixels, as the adjoint
@@ -694,6 +722,10 @@ class Boundary:
             L, R = (ly, lx), (ly + (axis == 0), lx + (axis == 1))
             kind, light, depth = self.classify(L, R, bounces)
             keep = self.kept(kind)
+            if not self.camera_moves:  # (if it does, every edge moves)
+                where = np.flatnonzero(keep)
+                keep[where] = self.moving_edges(kind[where], light[where],
+                                                flat(L, cols)[where], flat(R, cols)[where])
             ly, lx = ly[keep], lx[keep]
             ry, rx = ly + (axis == 0), lx + (axis == 1)
             # the neighbours of L and R across the axis, either side (one side at the border):
@@ -855,6 +887,28 @@ class Boundary:
             pending &= ~here
         return kind, light, depth
 
+    def moving_edges(self, kind, light, L, R):
+        """Where the edge between the samples of the pairs (L, R) (flat positions, see
+        :func:`flat`) of ``kind`` (and ``light``: a shadow's) moves, the camera still: a
+        visibility edge where either sample sees a moving shape, a checker line on one, a
+        shadow edge whose surface, light or blocker moves, and every edge seen along the
+        specular chain (not told apart: kept). Elsewhere g reads nothing a key moves: the
+        term is zero, and its pair is not formed (a fit of one object's pose, the camera
+        still: the checker lines of a floor that does not move, four fifths of the pairs
+        of benchmarks/edges_bench.py's scene, cost nothing)."""
+        moves = (kind >= CHAIN_VISIBILITY) | self.moves(at(self.shape, L)) \
+            | self.moves(at(self.shape, R))
+        shadow = np.flatnonzero(kind == SHADOW)
+        if len(shadow):
+            blocker = self.blocker(self.lit, self.occluder, light[shadow], L[shadow], R[shadow])
+            moves[shadow] |= self.light_moves[light[shadow]] | self.moves(blocker[:, 0])
+        return moves
+
+    def moves(self, shape):
+        """Whether the shapes ``shape`` (registry ids, numpy; NO_HIT: none) move."""
+        last = len(self.shape_moves) - 1
+        return self.shape_moves[np.where(shape < last, shape, last)]
+
     def kept(self, kind):
         """Where a pair of ``kind`` (int8 array; -1: none, or left out) is formed."""
         if self.formed[1:].all():
@@ -1007,8 +1061,9 @@ class Boundary:
         subtracts zeta(1/2, delta) sqrt(delta) D(delta) / k^2 from its pixel, weighted by
         n_a^2 as the boundary term is (rows and columns both estimate it): one more sample
         traced, attached to the geometry's and the camera's keys alone, and only where they
-        move (a light or a material leaves the hit in place: nothing is singular; their
-        derivatives are kept out of D); the smooth part of D at the
+        move the sphere's hits: the sphere moves, or the camera does (a light, a material or
+        another shape leaves the hit in place: nothing is singular; the lights' and the
+        materials' derivatives are kept out of D); the smooth part of D at the
         first sample is taken for singular too, a bias of at most 1.5 D / k^2 per pair
         (measured on benchmarks/edges_bench.py's spheres: per-pixel error at k = 4 from
         18-19 % to 4-5 %; on its whole scene moved by the eye, 14.1 % to 14.0 %)."""
@@ -1020,6 +1075,8 @@ class Boundary:
         shape = np.where(near_l, *ends.shape)
         kind_of = self.kind_of
         sphere = (kind == VISIBILITY) & (shape != NO_HIT) & (normal2 > 0)
+        if not self.camera_moves:  # (a sphere that stays, seen by a still camera)
+            sphere &= self.moves(shape)
         sphere &= (kind_of[np.minimum(np.where(shape == NO_HIT, 0, shape), len(kind_of) - 1)]
                    & SPHERE) != 0
         # the row goes on inside: the next sample away from the rim sees the same sphere

@@ -76,6 +76,15 @@ class Job:
             return lane + dr.opaque(mi.UInt32, self.first + start)
         return dr.gather(mi.UInt32, mi.UInt32(self.pixels[start:start + count]), lane)
 
+    def lanes(self, start, count):
+        """The image's camera ray number (pixel-major: pixel p's samples are p spp .. p spp +
+        spp - 1) of each lane of the job's pixels start .. start + count - 1 (UInt32;
+        computed, not gathered from a lazy array)."""
+        lane = dr.arange(mi.UInt32, count * self.spp)
+        if self.pixels is None:
+            return lane + dr.opaque(mi.UInt32, (self.first + start) * self.spp)
+        return self.lane_pixel(start, count) * self.spp + lane % self.spp
+
     def pixel_index(self, start, count):
         """The image's pixel numbers of the job's pixels start .. start + count - 1 (UInt32)."""
         if self.pixels is None:

@@ -159,13 +159,22 @@ class GeometryAD:
 
     def moves(self):
         """Whether some key of the geometry or of the camera has its gradient enabled."""
-        return self.attached() or (self.camera is not None and self.camera.attached())
+        return self.attached() or self.camera_moves()
 
     def attached(self):
         """Whether some key of the geometry has its gradient enabled."""
-        keys = [v for entries in (*self.spheres.values(), *self.meshes.values())
-                for v, *_ in entries]
-        return any(dr.grad_enabled(v) for v in keys)
+        return bool(self.moving_shapes())
+
+    def moving_shapes(self):
+        """The names (``Shape.id()``) of the shapes that some key with its gradient enabled
+        moves."""
+        return {name for shapes in (self.spheres, self.meshes)
+                for name, entries in shapes.items()
+                if any(dr.grad_enabled(v) for v, *_ in entries)}
+
+    def camera_moves(self):
+        """Whether some key of the camera has its gradient enabled."""
+        return self.camera is not None and self.camera.attached()
 
     def camera_rays(self, ray):
         return ray if self.camera is None else self.camera.rays(ray)

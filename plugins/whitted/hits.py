@@ -202,6 +202,7 @@ class HitTable:
         self.supported = False  # whether every shape is in the table (else Mitsuba's dispatch)
         # By shape id (the scene dict's name): its sphere row or its first vertex
         self.rows_by_name = {}
+        self.id_by_name = {}  # its registry id (see build)
         # Whether the geometry carries derivatives (a copy made by geometry_ad.GeometryAD)
         self.moving = False
         # By shape registry id (see build)
@@ -270,10 +271,12 @@ class HitTable:
         spheres = SphereRows(self.uv)
         face_count = vertex_count = 0
         self.rows_by_name = {}
+        self.id_by_name = {}
         for k, item, shape in zip(key, buffers, shapes):
             shape_id = k[0]
             if k[1] == "other":
                 continue
+            self.id_by_name[shape.id()] = shape_id
             self.rows_by_name[shape.id()] = spheres.count if k[1] != "mesh" else vertex_count
             if k[1] == "sphere":
                 kind[shape_id], first[shape_id] = SPHERE, spheres.count

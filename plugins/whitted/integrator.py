@@ -44,7 +44,7 @@ import numpy as np
 from raymitsuba import options
 from raymitsuba.options import RenderOptions
 
-from . import antialias, boundary, guards, replay
+from . import antialias, boundary, guards, replay, support
 from .arrays import Assembled, jit_array, jit_tensor
 from .camera import box_filter, camera_rays, pixel_means
 from .chunks import Chunker, Job, probe
@@ -92,6 +92,10 @@ class Whitted(mi.CppADIntegrator):
         # of the last adjoint pass replayed it
         self.recording = None
         self.replayed = 0
+        # The boundary terms' keys of every lattice sample of that render, recorded by it
+        # (boundary.Boundary; None: none), which its next adjoint pass adopts instead of
+        # recording them itself (see _boundary)
+        self.keys = None
 
     @property
     def max_depth(self):
@@ -131,15 +135,16 @@ class Whitted(mi.CppADIntegrator):
     def render_forward(self, scene, params, sensor=0, seed=0, spp=0):
         sensor, spp, width, height = self._setup(scene, sensor, spp)
         grads = np.zeros((width * height, 3), np.float32)
-        jobs = self._adjoint_jobs(scene, sensor, spp, width, height)
         chunker = self._adjoint_chunker(scene, sensor)
         edges = self._boundary(scene, sensor, spp, width, height)  # (issue 13) or None
+        jobs = self._adjoint_jobs(scene, sensor, spp, width, height, edges)
         replays = self._replay(scene, sensor, spp, width, height)
+        recording = edges is not None and not edges.adopted  # its keys, by this pass
         for j, (job, _) in enumerate(jobs):
             last_job = j == len(jobs) - 1 and edges is None
 
             def visit(start, count, color, job=job, last_job=last_job):
-                if edges is not None:
+                if recording:
                     edges.collect(job, start, count, color)
                 with dr.resume_grad():
                     means = pixel_means(color, count, job.spp)
@@ -151,8 +156,7 @@ class Whitted(mi.CppADIntegrator):
                     grad = dr.ravel(dr.grad(means)).numpy().reshape(-1, 3)
                 grads[job.pixel_index(start, count).numpy()] = grad
 
-            chunker.run(job, visit, ad=True,
-                        record=None if edges is None else edges.recorder(job),
+            chunker.run(job, visit, ad=True, record=edges.recorder(job) if recording else None,
                         queries=None if replays is None else replays(job))
         if edges is not None:
             edges.forward(grads, last=True)
@@ -165,7 +169,8 @@ class Whitted(mi.CppADIntegrator):
                                      else mi.TensorXf(grad_in).array))
         edges = self._boundary(scene, sensor, spp, width, height)  # (issue 13) or None
         replays = self._replay(scene, sensor, spp, width, height)
-        for job, weights in self._adjoint_jobs(scene, sensor, spp, width, height):
+        recording = edges is not None and not edges.adopted  # its keys, by this pass
+        for job, weights in self._adjoint_jobs(scene, sensor, spp, width, height, edges):
             # pixels refined later take their value (and their gradient) from a later job
             grad = grad_in if weights is None else grad_in * jit_array(mi.Float, np.repeat(weights, 3))
             # evaluated now, alone: a chunk's first gather from it would otherwise evaluate it
@@ -183,11 +188,11 @@ class Whitted(mi.CppADIntegrator):
                     dr.schedule(color)
                     dr.backward_from(color * share,
                                      flags=dr.ADFlag.Default | NO_DEPENDENCE_IS_ZERO)
-                if edges is not None:
+                if recording:
                     edges.collect(job, start, count, color)
 
             chunker.run(job, visit, ad=True, lazy=True,
-                        record=None if edges is None else edges.recorder(job),
+                        record=edges.recorder(job) if recording else None,
                         queries=None if replays is None else replays(job))
         if edges is not None:
             edges.backward(grad_in.numpy().reshape(-1, 3))
@@ -227,16 +232,19 @@ class Whitted(mi.CppADIntegrator):
                               estimate.rays_per_camera_ray, self.progress, terms,
                               self.chunk_pixels)
             image = np.empty((width * (hi - lo), 3), np.float32) if assemble else None
-            self.recording = None  # (the last render's: replaced once this one is complete)
+            # (the last render's: replaced once this one is complete)
+            self.recording = self.keys = None
             recording = None if rows is not None else \
                 self._recording(scene, sensor, spp, width, height, terms)
+            keys = None if recording is None else \
+                self._keys(scene, sensor, spp, width, height, terms)
             first_pass(chunker, Job(width, height, spp, lo * width, width * (hi - lo)),
                        assemble_into(image) if assemble else
                        store if on_device else on_host(store),
                        None if recording is None else
                        lambda start, count, terms:
-                       recording.recorder((lo * width + start) * spp, count * spp))
-            self.recording = recording
+                       recording.recorder((lo * width + start) * spp, count * spp), keys)
+            self.recording, self.keys = recording, keys
             if self.aa > 0:
                 plan = antialias.refine(image.reshape(hi - lo, width, 3), spp, self.aa,
                                         chunker, estimate, height, lo, (top, bottom))
@@ -291,8 +299,32 @@ class Whitted(mi.CppADIntegrator):
                 f"sample lattice of --spp k^2 (got spp={spp}"
                 + (", with --aa" if self.aa > 0 else "") + "): their edges' terms are "
                 "computed between neighbouring lattice samples")
-        return boundary.Boundary(self.tracer, scene, sensor, width, height, spp,
-                                 self.memory_budget, kinds)
+        edges = boundary.Boundary(self.tracer, scene, sensor, width, height, spp,
+                                  self.memory_budget, kinds)
+        # the keys the last primal render recorded, if they are this pass's: the same image
+        # of the same geometry, camera and lights (the recording's token; once)
+        keys, self.keys = self.keys, None
+        if keys is not None and self.recording is not None and self.recording.matches(
+                replay.token(scene, sensor, width, height, spp), edges.terms.geometry.key):
+            edges.adopt(keys)
+        return edges
+
+    def _keys(self, scene, sensor, spp, width, height, terms):
+        """(issue 13) A boundary.Boundary to record the keys of a primal render's samples
+        (``Boundary.recorder``, ``collect``), for the adjoint pass after it to adopt (see
+        :meth:`_boundary`), where that pass need not trace every sample (only shapes move:
+        ``support.py``); else None, and where the keys would not fit in the memory budget
+        (the adjoint pass then refuses them, as it would)."""
+        with dr.resume_grad():  # (a primal render is detached: the keys' flags are read here)
+            if boundary.lattice_side(spp) is None or \
+                    not support.only_shapes_move(self.tracer, scene, terms.surfaces):
+                return None  # (no lattice: the adjoint pass refuses the boundary terms)
+            kinds = boundary.moving_kinds(self.tracer, scene)
+            try:
+                return boundary.Boundary(self.tracer, scene, sensor, width, height, spp,
+                                         self.memory_budget, kinds, terms)
+            except guards.BudgetError:
+                return None
 
     def _recording(self, scene, sensor, spp, width, height, terms):
         """A replay.Recording for this render's first generation, or None: recorded where an
@@ -324,7 +356,7 @@ class Whitted(mi.CppADIntegrator):
                 if not recording.matches(token, terms.geometry.key):
                     return None
                 self.replayed += 1
-                return recording.replayer((job.first + start) * spp, count * spp)
+                return recording.replayer(job.lanes(start, count))
 
             return queries
 
@@ -334,11 +366,17 @@ class Whitted(mi.CppADIntegrator):
         return Chunker(self.tracer, scene, sensor, self.memory_budget,
                        max_pixels=self.chunk_pixels)
 
-    def _adjoint_jobs(self, scene, sensor, spp, width, height):
+    def _adjoint_jobs(self, scene, sensor, spp, width, height, edges=None):
         """The adjoint passes' jobs: the primal render's, each with the weights of the pixels
-        it gives the value of (None: all its pixels; see antialias.Plan.adjoint_jobs)."""
+        it gives the value of (None: all its pixels; see antialias.Plan.adjoint_jobs); only
+        the pixels whose interior derivative may not be zero where ``edges`` (the pass's
+        boundary terms) adopted the samples' keys and only shapes move (``support.py``)."""
         if self.aa <= 0:
-            return [(Job(width, height, spp), None)]
+            pixels = None
+            if edges is not None and edges.adopted and \
+                    support.only_shapes_move(self.tracer, scene, edges.terms.surfaces):
+                pixels = support.interior_pixels(self.recording, edges, spp)
+            return [(Job(width, height, spp, pixels=pixels), None)]
         if self.plan is None or not self.plan.is_for(sensor, width, height, spp, self.aa):
             # No plan of this image: the adjoint pass is not after its primal render (e.g.
             # render_backward called by itself). The primal is rendered again, deliberately:
@@ -362,14 +400,18 @@ def assemble_into(image):
                                                          values))
 
 
-def first_pass(chunker, job, store, queries=None):
+def first_pass(chunker, job, store, queries=None, keys=None):
     """Trace ``job`` through ``chunker``, each chunk's box-filtered pixels (a Float of count
     3 values, evaluated) handed to ``store(first_pixel, values)`` (``queries``: see
-    ``Chunker.run``)."""
+    ``Chunker.run``; ``keys``: a boundary.Boundary that records its samples' keys and
+    colors, or None)."""
     def visit(start, count, color):
+        if keys is not None:
+            keys.collect(job, start, count, color)
         values = dr.ravel(pixel_means(color, count, job.spp))
         dr.eval(values)  # (launched, not waited for: the chunk's tree is freed)
         store(start, values)
 
-    chunker.run(job, visit, queries=queries)
+    chunker.run(job, visit, queries=queries,
+                record=None if keys is None else keys.recorder(job))
 

@@ -109,9 +109,9 @@ class Recording:
         tracer and recorded (a ``Tracer.trace`` ``queries``)."""
         return _Recorder(self.parts, first)
 
-    def replayer(self, first, count):
-        """The queries of the ``count`` lanes from lane ``first``, read back."""
-        lane = dr.arange(mi.UInt32, count) + dr.opaque(mi.UInt32, first)
+    def replayer(self, lane):
+        """The queries of the camera rays ``lane`` (UInt32: their numbers in the recorded
+        render, ``Job.lanes``), read back."""
         return _Replayer(self.answers(), lane)
 
     def answers(self):

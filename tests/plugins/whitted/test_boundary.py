@@ -409,6 +409,56 @@ def test_leaving_unmoved_kinds_out_leaves_the_derivative_as_it_was(mi):
     assert grads[0] == pytest.approx(grads[1], rel=1e-5)
 
 
+def test_edges_that_no_key_moves_form_no_pairs_and_add_nothing(mi, monkeypatch):
+    """The opaque ball moving, the camera still (glass over a checker): the pairs formed at
+    the first hit are those of the ball's edges -- a sample sees it, or it blocks the light
+    -- a fifth of those formed when every edge may move (the floor's checker lines and the
+    glass ball's rim stay where they are); the chain's are all kept. Forming every pair
+    anyway (their surrogates flat in the ball's key) gives the same derivative, to the
+    float32 order of the sums over the pairs (reverse mode: their atomics)."""
+    import drjit as dr
+    import raymitsuba
+
+    from raymitsuba.plugins.whitted import boundary
+
+    formed = {}
+    pairs, moving_edges = boundary.Boundary.pairs, boundary.Boundary.moving_edges
+
+    def kept(self):
+        formed[self] = pairs(self)
+        return formed[self]
+
+    def every_edge(self, kind, *args):
+        return np.ones(len(kind), bool)
+
+    monkeypatch.setattr(boundary.Boundary, "pairs", kept)
+    grads, counts = [], []
+    for control in (False, True):
+        monkeypatch.setattr(boundary.Boundary, "moving_edges",
+                            every_edge if control else moving_edges)
+        formed.clear()
+        scene = loaded(mi, GLASS_OVER_CHECKER, 16)
+        dr.enable_grad(scene.params["translate2.offset"])
+        scene.params.update()
+        result = raymitsuba.render(scene)
+        dr.backward(dr.sum(result * mi.TensorXf(weights().astype(np.float32)), axis=None))
+        grads.append(dr.grad(scene.params["translate2.offset"]).numpy().ravel())
+        (edges, found), = formed.items()
+        counts.append(len(found["kind"]))
+        if not control:
+            name, = scene.integrator.tracer.geometry_ad.moving_shapes()
+            ball = edges.terms.geometry.id_by_name[name]
+            first = found["kind"] < boundary.CHAIN_VISIBILITY
+            l, r = (boundary.flat(found[side], edges.cols)[first] for side in ("L", "R"))
+            sees = (boundary.at(edges.shape, l) == ball) | (boundary.at(edges.shape, r) == ball)
+            blocks = edges.blocker(edges.lit, edges.occluder, found["light"][first], l, r)[:, 0]
+            assert np.all(sees | ((found["kind"][first] == boundary.SHADOW) & (blocks == ball)))
+            assert np.any(~first)  # (the chain's: kept)
+    assert counts[0] < counts[1] / 4
+    assert np.all(grads[0] != 0.0)
+    np.testing.assert_allclose(grads[0], grads[1], rtol=1e-5)
+
+
 def test_turning_the_camera_is_turning_the_scene_the_other_way(mi):
     """The look-at point moved along x turns the camera about the eye (the origin), as the
     sphere and the light turned about it the other way (rotateY, and the light's position
