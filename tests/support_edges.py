@@ -188,6 +188,25 @@ def forward(mi, text, key, direction, spp, **options):
     return dr.grad(result).numpy().astype(np.float64)
 
 
+def tangent_derivative(loaded, keys, before_pass=None):
+    """The forward-mode derivative of ``loaded``'s image along ``keys``' tangents ({key:
+    tangent}); ``before_pass(loaded)``: called between the render and the derivative pass."""
+    import drjit as dr
+    import raymitsuba
+
+    params = loaded.params
+    for key in keys:
+        dr.enable_grad(params[key])
+    params.update()
+    for key, tangent in keys.items():
+        dr.set_grad(params[key], type(params[key])(*tangent))
+    image = raymitsuba.render(loaded)
+    if before_pass is not None:
+        before_pass(loaded)
+    dr.forward_to(image)
+    return dr.grad(image).numpy()
+
+
 def reverse(mi, text, key, weights, spp, **options):
     """d sum(weights * image) / d key in reverse mode (the key's components)."""
     import drjit as dr

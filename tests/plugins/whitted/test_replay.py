@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from support_edges import SPHERE_ON_CHECKER as SCENE
+from support_edges import tangent_derivative
 
 WIDTH, HEIGHT = 24, 18
 # the keys' tangents of the forward-mode derivative (forward mode: a pixel's derivative is
@@ -22,21 +23,12 @@ def derivative(mi, loaded, before_pass=None, adjoint_chunk=None, keys=KEYS):
     derivative pass that replayed the recording. ``before_pass(loaded)``: called between the
     render and the derivative pass; ``adjoint_chunk``: the derivative pass's pixels a chunk
     (the render's as loaded); ``keys``: {key: tangent}."""
-    import drjit as dr
-    import raymitsuba
+    def before(loaded):
+        if before_pass is not None:
+            before_pass(loaded)
+        loaded.integrator.chunk_pixels = adjoint_chunk
 
-    params = loaded.params
-    for key in keys:
-        dr.enable_grad(params[key])
-    params.update()
-    for key, tangent in keys.items():
-        dr.set_grad(params[key], type(params[key])(*tangent))
-    image = raymitsuba.render(loaded)
-    if before_pass is not None:
-        before_pass(loaded)
-    loaded.integrator.chunk_pixels = adjoint_chunk
-    dr.forward_to(image)
-    return dr.grad(image).numpy(), loaded.integrator.replayed
+    return tangent_derivative(loaded, keys, before), loaded.integrator.replayed
 
 
 def load(primal_chunk=None, spp=16, **options):

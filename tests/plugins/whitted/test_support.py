@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from support_edges import SPHERE_ON_CHECKER as SCENE
+from support_edges import tangent_derivative as derivative
 
 WIDTH, HEIGHT, SPP = 24, 18, 16
 MOVE = {"translate2.offset": (0.6, -0.8, 0.0)}  # the ball (its tangent, forward mode)
@@ -18,25 +19,6 @@ def load():
     import raymitsuba
 
     return raymitsuba.load(SCENE, width=WIDTH, height=HEIGHT, spp=SPP)
-
-
-def derivative(loaded, keys, before_pass=None):
-    """The image's forward-mode derivative along ``keys``' tangents ({key: tangent});
-    ``before_pass(loaded)``: called between the render and the derivative pass."""
-    import drjit as dr
-    import raymitsuba
-
-    params = loaded.params
-    for key in keys:
-        dr.enable_grad(params[key])
-    params.update()
-    for key, tangent in keys.items():
-        dr.set_grad(params[key], type(params[key])(*tangent))
-    image = raymitsuba.render(loaded)
-    if before_pass is not None:
-        before_pass(loaded)
-    dr.forward_to(image)
-    return dr.grad(image).numpy()
 
 
 def pixels_seeing(mi, loaded, shape):
