@@ -2,14 +2,14 @@
 
 The conventions (outward winding, the normals' inverse transpose, the winding reversed
 under mirroring, the crack-avoiding overlap of faces) are decided once, in
-``raymitsuba/tessellation.py``; this module applies them to one object and fills an
+``raymitsuba/geometry/tessellation.py``; this module applies them to one object and fills an
 ``mi.Mesh`` (the plane uses it; the translator places many objects at once itself).
 """
 
 import numpy as np
 import mitsuba as mi
 
-from raymitsuba import tessellation
+from raymitsuba.geometry import tessellation
 from raymitsuba.plugins.whitted.arrays import jit_array
 
 

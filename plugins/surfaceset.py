@@ -1,7 +1,7 @@
 """``raysurfaceset``: the surfaces of a shape whose primitives have surfaces of their own,
 and the table of the materials that only they use.
 
-The sphere set (:mod:`raymitsuba.sphere_set`) is one Mitsuba shape holding many spheres,
+The sphere set (:mod:`raymitsuba.geometry.sphere_set`) is one Mitsuba shape holding many spheres,
 each drawn with the surface of its object; Mitsuba gives a shape one BSDF. This BSDF is
 that one. It holds, for each primitive in order, which of its *surfaces* it has:
 
@@ -10,7 +10,7 @@ that one. It holds, for each primitive in order, which of its *surfaces* it has:
 * the materials that only the set's untextured spheres use (a scene of 10^4 spheres
   each with its own material has 10^4 of them): not Mitsuba objects but rows of one
   table, ``materials`` (10 floats a row: color r g b, then ka kd ks n kr kt eta, the
-  order of ``Material.FIELDS``: ``raymitsuba.sphere_set.material_row``), so loading them
+  order of ``Material.FIELDS``: ``raymitsuba.geometry.sphere_set.material_row``), so loading them
   costs one array, not 10^4 plugins.
   Row m is surface J + m, a :class:`TableRow`, with the surface interface
   (``whitted/protocol.py``) like a ``rayphong``.
@@ -34,7 +34,7 @@ import mitsuba as mi
 import numpy as np
 
 from raymitsuba.model import Material
-from raymitsuba.sphere_set import MATERIAL_COLUMNS, material_column
+from raymitsuba.geometry.sphere_set import MATERIAL_COLUMNS, material_column
 
 PREFIX = "surface_"
 FIELDS = Material.FIELDS  # color, then the floats

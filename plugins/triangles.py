@@ -7,7 +7,7 @@ arrays over; this plugin only wraps them in an ``mi.Mesh``, without copying.
 The winding is the translator's: for ``triangle`` lines the front side of each
 triangle (right-hand rule on its object-space corners, carried to the world by the
 inverse transpose of its transform) is the side its world-space winding points to;
-for tessellations, the outward side (see ``raymitsuba/tessellation.py``).
+for tessellations, the outward side (see ``raymitsuba/geometry/tessellation.py``).
 
 Parameters:
 

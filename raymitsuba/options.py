@@ -145,7 +145,7 @@ class RenderOptions:
         256, "Draw the opaque spheres (analytic ones, and untextured ones under non-uniform "
              "scales as exact ellipsoids) as one shape when a scene has at least this many "
              "(0: never): 10^4 spheres load in milliseconds, but those spheres cannot move "
-             "or turn transparent in a fit (raymitsuba/sphere_set.py).",
+             "or turn transparent in a fit (raymitsuba/geometry/sphere_set.py).",
         SCENE, int, low=0, metavar="N")
 
     def __post_init__(self):

@@ -22,8 +22,8 @@ wherever there are many):
   without mirroring (exact), else tessellated (below); in a scene with at least
   ``Options.sphere_set`` (256) opaque spheres that may join it (analytic ones, and
   tessellated ones of an untextured surface), those are one shape, ``spheres``
-  (:mod:`raymitsuba.sphere_set`: Mitsuba's ``ellipsoids``, exact spheres and ellipsoids);
-* cylinder, cone, and the other spheres: tessellated (see :mod:`raymitsuba.tessellation`),
+  (:mod:`raymitsuba.geometry.sphere_set`: Mitsuba's ``ellipsoids``, exact spheres and ellipsoids);
+* cylinder, cone, and the other spheres: tessellated (see :mod:`raymitsuba.geometry.tessellation`),
   all those of one surface merged into one smooth ``raytriangles`` mesh, ``quadrics_{k}``;
 * plane: ``rayplane``, rings centred under the camera out past the horizon;
 * triangles: one flat ``raytriangles`` mesh per surface, ``triangles_{k}``.
@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from raymitsuba import sphere_set, tessellation
+from raymitsuba.geometry import sphere_set, tessellation
 from raymitsuba.model import Material, ObjectKind, Scene, SceneObject
 from raymitsuba.options import RenderOptions
 
@@ -336,7 +336,7 @@ def set_members(spheres, tessellated, model, options):
     rows or None, surface id)], their to_world (n, 4, 4), the tessellated objects left):
     the set takes the opaque spheres that do not contain the eye -- the analytic ones and
     the untextured tessellated ones (ellipsoids) -- when there are at least
-    ``options.sphere_set`` of them (see :mod:`raymitsuba.sphere_set`)."""
+    ``options.sphere_set`` of them (see :mod:`raymitsuba.geometry.sphere_set`)."""
     if not options.sphere_set:
         return spheres, [], None, tessellated
     eye = np.asarray(model.camera.eye, np.float64)

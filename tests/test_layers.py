@@ -30,14 +30,14 @@ ALLOWED = {
 }
 ROOMS = {
     "raymitsuba.model": "shared", "raymitsuba.options": "shared", "raymitsuba.util": "shared",
-    "raymitsuba.atomic": "shared", "raymitsuba.tessellation": "shared",
-    "raymitsuba.sphere_set": "shared",
+    "raymitsuba.atomic": "shared",
     "raymitsuba.translate": "translate",
     "raymitsuba._llvm": "backend", "raymitsuba.backend": "backend", "raymitsuba.images": "backend",
     "raymitsuba.api": "library", "raymitsuba.fit": "library", "raymitsuba.parameters": "library", "raymitsuba.testing": "library",
     "raymitsuba": "cli", "raymitsuba.__main__": "cli",  # the package's face: entry points
 }
-PREFIXES = {"raymitsuba.format": "format", "raymitsuba.cli": "cli", "raymitsuba.compare": "library",
+PREFIXES = {"raymitsuba.format": "format", "raymitsuba.geometry": "shared", "raymitsuba.cli": "cli",
+            "raymitsuba.compare": "library",
             "raymitsuba.plugins": "plugins", "raymitsuba.batch": "library"}
 
 
@@ -114,7 +114,7 @@ def test_the_rooms_allowed_make_the_pipeline_order():
 
 
 # The shared geometry conventions of the translator and the plugins: arrays, so numpy.
-NUMPY_CONVENTIONS = ("raymitsuba.tessellation", "raymitsuba.sphere_set")
+NUMPY_CONVENTIONS = ("raymitsuba.geometry.tessellation", "raymitsuba.geometry.sphere_set")
 
 
 @pytest.mark.parametrize("name", sorted(n for n in MODULES if room(n) in ("format", "shared")
@@ -142,3 +142,50 @@ def test_the_integrators_protocol_depends_on_no_concrete_plugin():
     plugins = {target for target, _ in imports(name, MODULES[name])
                if room(target) == "plugins"}
     assert not plugins, f"{name} imports {sorted(plugins)}"
+
+
+def _cycles(graph: dict) -> list:
+    """The strongly connected components of more than one module (Tarjan's algorithm)."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_modules_import_each_other_in_a_circle():
+    """Within a room too, every import (lazy ones included) points one way: a circle (as
+    batch/cluster.py and batch/core.py once made) means neither can be read alone."""
+    graph = {name: {t for t, _ in imports(name, path) if t in MODULES and t != name}
+             for name, path in MODULES.items()}
+    assert not _cycles(graph)
+
+
+def test_the_package_top_holds_at_most_twelve_modules():
+    """A module that joins the top of raymitsuba/ goes in a room's folder once there are
+    twelve (README.md, "Layout")."""
+    top = [f for f in os.listdir(os.path.join(REPO, "raymitsuba"))
+           if f.endswith(".py") and f not in ("__init__.py", "__main__.py")]
+    assert len(top) <= 12, sorted(top)

@@ -133,7 +133,7 @@ def test_similarity_sphere_is_analytic_otherwise_a_smooth_mesh(translate, steps,
     (shape,) = _shapes(d).values()
     assert shape["type"] == kind
     if kind == "raytriangles":
-        from raymitsuba.tessellation import triangle_count
+        from raymitsuba.geometry.tessellation import triangle_count
 
         faces = np.array(shape["faces"]).reshape(-1, 3)
         assert len(faces) >= triangle_count("sphere", 48) and "normals" in shape
@@ -266,7 +266,7 @@ def test_placed_copies_match_one_by_one_and_face_outward():
     """Placing a template under k transforms at once gives each object's own placement, and
     every face's right-hand-rule normal agrees with its vertex normals (outward) in the
     world, mirrored or not; the vertices lie on the transformed primitive."""
-    from raymitsuba import tessellation
+    from raymitsuba.geometry import tessellation
     from support import rotation, scaling, stack, translation
 
     transforms = np.array([stack(scaling(1, 2, 0.5), rotation("x", 30), translation(1, 2, 3)),
@@ -296,7 +296,7 @@ def test_placed_copies_match_one_by_one_and_face_outward():
 
 @pytest.mark.parametrize("kind", ["sphere", "cylinder", "cone"])
 def test_triangle_counts_in_closed_form(kind):
-    from raymitsuba import tessellation
+    from raymitsuba.geometry import tessellation
 
     for m in (8, 12, 30, 48, 130, 768):
         assert len(tessellation.template(kind, m).faces) == tessellation.triangle_count(kind, m)
@@ -325,7 +325,7 @@ def test_tessellation_budget_scales_segment_counts_down(translate):
 def test_tessellation_budget_gives_way_at_the_floor_then_refuses(translate):
     """At BUDGET_MIN_SEGMENTS the budget gives way up to the limit; past the limit the scene
     is refused with one line saying why, before any mesh is built."""
-    from raymitsuba.tessellation import triangle_count
+    from raymitsuba.geometry.tessellation import triangle_count
     from raymitsuba.translate import BUDGET_MIN_SEGMENTS, GeometryTooLarge
 
     floor = 13 * sum(int(triangle_count(k, BUDGET_MIN_SEGMENTS)) for k in ("sphere", "cylinder", "cone"))

@@ -15,7 +15,7 @@ computed from tables indexed by the shape's registry id:
   point and the interpolated attributes at the ray tracer's barycentrics, the
   normalized face normal; texture coordinates = the barycentrics on a mesh without
   any): the same bits;
-* Mitsuba's analytic spheres, and the sphere set's (``raymitsuba.sphere_set``: one
+* Mitsuba's analytic spheres, and the sphere set's (``raymitsuba.geometry.sphere_set``: one
   ``ellipsoids`` shape, its sphere k in row first + k): centre, radius and world-to-object
   transform (the point
   on the ray at the hit distance, the normal from the centre, uv = (phi / 2pi, theta / pi)
@@ -37,7 +37,7 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from raymitsuba import sphere_set
+from raymitsuba.geometry import sphere_set
 
 from .arrays import jit_array
 from .protocol import SurfaceSet
@@ -247,7 +247,7 @@ class HitTable:
                 buffers.append(shape)
                 key.append((int(shape_id), "sphere") + sphere_key(shape))
             elif shape.class_name() == "Ellipsoids" and isinstance(shape.bsdf(), SurfaceSet):
-                data = shape_property(shape, "data")  # the sphere set (raymitsuba.sphere_set)
+                data = shape_property(shape, "data")  # the sphere set (raymitsuba.geometry.sphere_set)
                 # (a handle of the table's own: ``data`` is the shape's, which an update
                 # points at a new variable, and the key names the variable by its index)
                 data = type(data)(data)

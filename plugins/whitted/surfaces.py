@@ -286,7 +286,7 @@ class Surfaces:
                 "raywhitted: a material of the sphere set has kt > 0, but the set's spheres "
                 "must stay opaque (Mitsuba's ellipsoids cull the hits of rays from inside); "
                 "load the scene with --sphere-set 0 (sphere_set=0) to make them transparent "
-                "(raymitsuba/sphere_set.py)")
+                "(raymitsuba/geometry/sphere_set.py)")
 
     def slot(self, shape, prim_index, active):
         """The slot of the surface of each lane's shape and primitive (a ShapePtr, e.g.

@@ -10,6 +10,8 @@ module            what it owns
                   workers (or in this process), one :class:`Result` per item
 ``cluster``       the client: a local cluster of spawned workers on 127.0.0.1, or a
                   scheduler's address; the worker plugin (versions, threads, warm-up)
+``runtime``       what every process running items shares, without Dask: the
+                  versions an image depends on, Dr.Jit's threads
 ``tasks``         what a worker computes: a scene to image bytes or a band of rows
 ``render``        :func:`render_many`: parse, send, write outputs and tiles atomically
 ``fit``           :func:`fit_many`: one fit per scene, each to its own target

@@ -21,7 +21,6 @@ Kernel caches: Dr.Jit keeps compiled kernels in ``DRJIT_CACHE_DIR`` (default
 from __future__ import annotations
 
 import contextlib
-import functools
 import gc
 import logging
 import os
@@ -29,9 +28,8 @@ from typing import Iterator, Optional
 
 from distributed import WorkerPlugin
 
-from raymitsuba.batch.core import SCHEDULER_ENV, set_threads
+from raymitsuba.batch.runtime import SCHEDULER_ENV, check_versions, set_threads, versions
 
-PACKAGES = ("raymitsuba", "mitsuba", "drjit")
 #: the scene the workers render once to warm their kernel caches (a sphere, a plane, a light)
 WARM_SCENE = """
 sphere
@@ -42,34 +40,8 @@ light 1 1 1 point 0 4 4
 WARM_SIZE = 8  # pixels a side
 
 
-class VersionMismatch(RuntimeError):
-    """A worker's raymitsuba, mitsuba or drjit differs from the client's."""
-
-
 class ThreadedWorker(RuntimeError):
     """A worker that would run several tasks at once, in threads of one process."""
-
-
-@functools.lru_cache(maxsize=None)
-def _versions() -> tuple:
-    from importlib.metadata import version
-
-    return tuple((name, version(name)) for name in PACKAGES)
-
-
-def versions() -> dict:
-    """{package: version} of :data:`PACKAGES` in this process (read once)."""
-    return dict(_versions())
-
-
-def check_versions(expected: dict) -> None:
-    """Raise :class:`VersionMismatch` unless this process has the ``expected`` versions."""
-    here = versions()
-    wrong = [f"{name} {here.get(name)} (the client has {want})"
-             for name, want in expected.items() if here.get(name) != want]
-    if wrong:
-        raise VersionMismatch("this worker has " + ", ".join(wrong) +
-                              ": images must not depend on where they were rendered")
 
 
 def warm() -> None:

@@ -27,7 +27,8 @@ from typing import Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from raymitsuba.batch.core import SCHEDULER_ENV, Result, run_items
+from raymitsuba.batch.core import Result, run_items
+from raymitsuba.batch.runtime import SCHEDULER_ENV
 from raymitsuba.batch.render import Item, parse
 from raymitsuba.batch.tasks import textures_of, with_local_textures
 from raymitsuba.compare import (ERROR, FAILED, MISSING, Result as Comparison, Settings,

@@ -30,11 +30,10 @@ import uuid
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, List, Optional
 
+from raymitsuba.batch.runtime import SCHEDULER_ENV, check_versions, set_threads, versions
 from raymitsuba.util import error_message
 
 LOCAL = "local"  # the worker name of an item run in this process
-#: the environment variable Dask's own tools read a scheduler's address from
-SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
 
 
 class ItemError(Exception):
@@ -64,8 +63,6 @@ def attempt(fn: Callable, item, expected: Optional[dict] = None) -> tuple:
     (``VersionMismatch``; a worker that joined after the batch began, whose setup refusal
     Dask only logs)."""
     if expected is not None:
-        from raymitsuba.batch.cluster import check_versions
-
         check_versions(expected)
     start = time.perf_counter()
     value = fn(item)
@@ -78,17 +75,6 @@ def attempt(fn: Callable, item, expected: Optional[dict] = None) -> tuple:
         except ValueError:  # not in a worker's task
             pass
     return value, where, time.perf_counter() - start
-
-
-def set_threads(threads: Optional[int]) -> None:
-    """Dr.Jit's thread count in this process (None: Dr.Jit's default, every core)."""
-    from raymitsuba.backend import mitsuba
-
-    mitsuba(mitsuba_integrators=False)
-    import drjit as dr
-
-    if threads:
-        dr.set_thread_count(int(threads))
 
 
 def run_items(fn: Callable, items: Iterable, client=None, jobs: Optional[int] = None,
@@ -109,7 +95,7 @@ def run_items(fn: Callable, items: Iterable, client=None, jobs: Optional[int] = 
     from raymitsuba.batch import cluster
 
     if client is not None:
-        client.register_plugin(cluster.Setup(cluster.versions(), threads))
+        client.register_plugin(cluster.Setup(versions(), threads))
         return _on_client(client, fn, items, fail_fast, on_result)
     with cluster.connect(jobs, threads, scheduler) as client:
         return _on_client(client, fn, items, fail_fast, on_result)
@@ -164,8 +150,6 @@ def _on_client(client, fn, items, fail_fast, on_result):
 
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
-
-    from raymitsuba.batch.cluster import versions
 
     batch = uuid.uuid4().hex[:12]
     expected = versions()

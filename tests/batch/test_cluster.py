@@ -46,10 +46,12 @@ def test_workers_run_the_dr_jit_threads_asked_for(client):
 
 
 def test_a_worker_of_other_versions_is_refused_before_any_work(client):
-    other = dict(cluster.versions(), mitsuba="3.0.0")
-    with pytest.raises(cluster.VersionMismatch, match=r"mitsuba 3\.9\.1 \(the client has 3\.0\.0\)"):
+    from raymitsuba.batch.runtime import VersionMismatch, versions
+
+    other = dict(versions(), mitsuba="3.0.0")
+    with pytest.raises(VersionMismatch, match=r"mitsuba 3\.9\.1 \(the client has 3\.0\.0\)"):
         client.register_plugin(cluster.Setup(other, 1))
-    client.register_plugin(cluster.Setup(cluster.versions(), 1))  # as it was
+    client.register_plugin(cluster.Setup(versions(), 1))  # as it was
 
 
 def test_a_worker_running_tasks_in_threads_is_refused(tmp_path):

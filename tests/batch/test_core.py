@@ -56,7 +56,7 @@ def test_an_item_that_kills_every_worker_fails_alone_with_its_reason(client):
 def test_a_worker_of_other_versions_refuses_each_item():
     # what a worker that joins after the batch began does (its setup's refusal is only
     # logged by Dask): the item is refused before it runs
-    from raymitsuba.batch.cluster import VersionMismatch, versions
+    from raymitsuba.batch.runtime import VersionMismatch, versions
     from raymitsuba.batch.core import attempt
 
     assert attempt(batch_helpers.fail_on, 3, versions())[0] == 9

@@ -1,5 +1,5 @@
 """``--sphere-set N`` on the command line (raymitsuba/cli/render.py, fit.py): the sphere set
-(raymitsuba/sphere_set.py) draws what single spheres draw, and a fit it cannot do stops with
+(raymitsuba/geometry/sphere_set.py) draws what single spheres draw, and a fit it cannot do stops with
 a one-line error that says how to load the scene instead."""
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ def test_render_draws_the_same_image_with_and_without_the_set(tmp_path, mitsuba)
                                                      "--height", "48", *extra])
         assert result.exit_code == 0, result.output
         images.append(np.load(out))
-    # float rounding only, but for a ray that grazes a sphere (tests/test_sphere_set.py)
+    # float rounding only, but for a ray that grazes a sphere (tests/geometry/test_sphere_set.py)
     assert (np.abs(images[0] - images[1]).max(axis=-1) > 1e-5).mean() < 0.01
 
 

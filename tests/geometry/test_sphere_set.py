@@ -1,4 +1,4 @@
-"""The sphere set (raymitsuba/sphere_set.py): a scene's many opaque spheres (and ellipsoids)
+"""The sphere set (raymitsuba/geometry/sphere_set.py): a scene's many opaque spheres (and ellipsoids)
 as one Mitsuba ``ellipsoids`` shape, which must draw exactly what the spheres drawn one by one
 do."""
 
@@ -72,7 +72,7 @@ def random_similarities(n, seed):
 
 
 def test_unpacking_gives_the_centre_the_radius_and_the_inverse_transform():
-    from raymitsuba import sphere_set
+    from raymitsuba.geometry import sphere_set
 
     m = random_similarities(500, seed=3)
     center, radius, to_object, ellipsoid = sphere_set.unpack(sphere_set.pack(m))
@@ -91,7 +91,7 @@ def test_an_ellipsoids_data_maps_its_surface_onto_the_unit_sphere():
     sphere -- the same surface, in the set's own object space -- to float32 storage's
     rounding (6e-8 relative per number) times the transform's condition number, with a
     margin of 16."""
-    from raymitsuba import sphere_set
+    from raymitsuba.geometry import sphere_set
 
     rng = np.random.default_rng(5)
     m = np.tile(np.eye(4), (400, 1, 1))
@@ -109,7 +109,7 @@ def test_an_ellipsoids_data_maps_its_surface_onto_the_unit_sphere():
 
 
 def test_quaternions_of_the_axis_rotations_are_the_textbook_ones():
-    from raymitsuba import sphere_set
+    from raymitsuba.geometry import sphere_set
 
     half = math.sqrt(0.5)
     r = np.array([np.eye(3), [[1, 0, 0], [0, 0, -1], [0, 1, 0]], [[-1, 0, 0], [0, -1, 0], [0, 0, 1]]])
@@ -164,7 +164,7 @@ def test_untextured_opaque_ellipsoids_join_the_set_the_others_stay_tessellated(t
     assert single == np.count_nonzero(~stretched & glass)
     assert members == np.count_nonzero(~glass & ~(stretched & textured))
     # the set's ellipsoids are the stretched ones; no sphere is tessellated twice or lost
-    from raymitsuba import sphere_set
+    from raymitsuba.geometry import sphere_set
 
     assert np.count_nonzero(sphere_set.unpack(np.asarray(d["spheres"]["data"]))[3]) == \
         np.count_nonzero(stretched & ~glass & ~textured)
