@@ -10,7 +10,7 @@ that one. It holds, for each primitive in order, which of its *surfaces* it has:
 * the materials that only the set's untextured spheres use (a scene of 10^4 spheres
   each with its own material has 10^4 of them): not Mitsuba objects but rows of one
   table, ``materials`` (10 floats a row: color r g b, then ka kd ks n kr kt eta, the
-  order of ``Material.FIELDS``: ``raymitsuba.geometry.sphere_set.material_row``), so loading them
+  order of ``Material.FIELDS``: ``raymitsuba.geometry.sphere_set.material_table``), so loading them
   costs one array, not 10^4 plugins.
   Row m is surface J + m, a :class:`TableRow`, with the surface interface
   (``whitted/protocol.py``) like a ``rayphong``.

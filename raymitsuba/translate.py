@@ -272,25 +272,28 @@ def shapes(model, options, surfaces, mi) -> dict:
     out, triangles, curved = {}, [], []
     for (kind, *_), objs in groups.items():
         surface_id = surfaces.id(objs[0])
-        ref = {"type": "ref", "id": surface_id}
         if kind is ObjectKind.PLANE:
+            ref = {"type": "ref", "id": surface_id}
             for obj in objs:
                 out[f"plane_{obj.line}"] = plane(obj, model, mi) | {"bsdf": ref}
         elif kind is ObjectKind.TRIANGLE:
-            triangles.append(triangle_mesh(objs, mi) | {"bsdf": ref})
+            triangles.append(triangle_mesh(objs, mi) | {"bsdf": {"type": "ref", "id": surface_id}})
         else:
             curved.append((surface_id, kind, objs))
-    spheres, tessellated = analytic_or_tessellated(curved)
-    spheres, grouped, grouped_to_world, tessellated = set_members(spheres, tessellated, model,
-                                                                  options)
+    objects = CurvedObjects(curved, model)
+    member = set_members(objects, model, options)
     names = ShapeNames()
-    for obj, to_world, surface_id in spheres:
-        out[names.next("sphere", obj.line)] = {"type": "sphere", "to_world": mi.ScalarTransform4f(to_world),
-                                     "bsdf": {"type": "ref", "id": surface_id}}
-    if grouped:
-        out["spheres"] = sphere_set_shape(grouped, grouped_to_world, model, surfaces, mi)
+    single = np.flatnonzero(objects.exact & ~member)
+    for i, rows in zip(single.tolist(), objects.sphere_to_world(single).tolist()):
+        obj = objects.objs[i]
+        out[names.next("sphere", obj.line)] = {"type": "sphere",
+                                               "to_world": mi.ScalarTransform4f(rows),
+                                               "bsdf": {"type": "ref",
+                                                        "id": objects.surface_ids[i]}}
+    if member.any():
+        out["spheres"] = sphere_set_shape(objects, member, model, surfaces, mi)
     out |= {f"triangles_{k}": mesh for k, mesh in enumerate(triangles)}
-    meshes = quadric_meshes(tessellated, model, options, mi)
+    meshes = quadric_meshes(objects.tessellated(~objects.exact & ~member), model, options, mi)
     return out | {f"quadrics_{k}": mesh for k, mesh in enumerate(meshes)}
 
 
@@ -307,107 +310,123 @@ class ShapeNames:
         return f"{kind}_{line}" if n == 0 else f"{kind}_{line}_{n}"
 
 
-def analytic_or_tessellated(curved):
-    """Split the curved objects ([(surface id, kind, objects)]) into analytic spheres
-    [(object, Mitsuba sphere's to_world as rows, surface id)] and the tessellated rest
-    [(surface id, kind, transforms (n, 4, 4), objects)], classifying all of them at once."""
-    objs = [obj for _, _, group in curved for obj in group]
-    m = matrices(objs)
-    exact = np.array([obj.kind is ObjectKind.SPHERE for obj in objs], bool) & \
-        sphere_set.is_similarity(m[:, :3, :3])
-    rows = iter((m[exact] @ Z_TO_Y).tolist())
-    flags = exact.tolist()  # (groups are often of one object: no numpy work per group)
-    spheres, tessellated, start = [], [], 0
-    for surface_id, kind, group in curved:
-        stop = start + len(group)
-        exact_group = flags[start:stop]
-        spheres += [(obj, next(rows), surface_id) for obj, e in zip(group, exact_group) if e]
-        if not any(exact_group):
-            tessellated.append((surface_id, kind, m[start:stop], group))
-        elif not all(exact_group):
-            tessellated.append((surface_id, kind, m[start:stop][~exact[start:stop]],
-                                [obj for obj, e in zip(group, exact_group) if not e]))
-        start = stop
-    return spheres, tessellated
+class CurvedObjects:
+    """The curved objects (spheres, cylinders, cones) of the scene in one set of arrays, in
+    the order of their groups ([(surface id, kind, objects)], as :func:`shapes` makes them),
+    classified all at once: per object its ``to_world`` (n, 4, 4) float64, its ``group``
+    (index into the groups), ``material``, whether it is ``untextured`` and a ``sphere``,
+    and whether it is ``exact``: a sphere under a similarity without mirroring (Mitsuba's
+    analytic sphere, or the sphere set); ``objs`` and ``surface_ids`` the objects and their
+    surfaces' ids. No Python work per object beyond reading its fields once: a scene has
+    up to millions of them."""
+
+    def __init__(self, groups, model):
+        self.groups = groups
+        self.objs = [obj for _, _, group in groups for obj in group]
+        sizes = np.fromiter(map(len, (group for _, _, group in groups)), np.int64, len(groups))
+        self.group = np.repeat(np.arange(len(groups)), sizes)
+        self.surface_ids = [surface_id for (surface_id, _, group) in groups for _ in group]
+        self.to_world = matrices(self.objs)
+        self.material = np.fromiter(map(operator.attrgetter("material"), self.objs), np.int64,
+                                    len(self.objs))
+        group_sphere = np.array([kind is ObjectKind.SPHERE for _, kind, _ in groups], bool)
+        group_untextured = np.array([untextured(group[0]) for _, _, group in groups], bool)
+        self.sphere = group_sphere[self.group]
+        self.untextured = group_untextured[self.group]
+        self.exact = self.sphere & sphere_set.is_similarity(self.to_world[:, :3, :3])
+
+    def sphere_to_world(self, which) -> np.ndarray:
+        """Mitsuba's sphere's to_world of the exact spheres ``which`` (its pole on local +z)."""
+        return self.to_world[which] @ Z_TO_Y
+
+    def tessellated(self, which) -> list:
+        """[(surface id, kind, transforms (n, 4, 4), objects)] of the objects ``which`` (a
+        mask), by group in group order: what :func:`quadric_meshes` takes."""
+        index = np.flatnonzero(which)
+        starts = np.flatnonzero(np.diff(self.group[index], prepend=-1))
+        out = []
+        for start, stop in zip(starts.tolist(), starts[1:].tolist() + [len(index)]):
+            surface_id, kind, _ = self.groups[self.group[index[start]]]
+            picked = index[start:stop]
+            out.append((surface_id, kind, self.to_world[picked],
+                        [self.objs[i] for i in picked.tolist()]))
+        return out
 
 
-def set_members(spheres, tessellated, model, options):
-    """(The analytic spheres drawn one by one, the sphere set's members [(object, to_world
-    rows or None, surface id)], their to_world (n, 4, 4), the tessellated objects left):
-    the set takes the opaque spheres that do not contain the eye -- the analytic ones and
-    the untextured tessellated ones (ellipsoids) -- when there are at least
-    ``options.sphere_set`` of them (see :mod:`raymitsuba.geometry.sphere_set`)."""
+def set_members(objects: CurvedObjects, model, options) -> np.ndarray:
+    """Which of the curved ``objects`` are the sphere set's members (a mask): the opaque
+    spheres that do not contain the eye -- the exact ones and the untextured others
+    (ellipsoids) -- when there are at least ``options.sphere_set`` of them (see
+    :mod:`raymitsuba.geometry.sphere_set`); none otherwise."""
+    member = np.zeros(len(objects.objs), bool)
     if not options.sphere_set:
-        return spheres, [], None, tessellated
+        return member
+    refractivity = np.fromiter(map(operator.attrgetter("refractivity"), model.materials),
+                               np.float64, len(model.materials))
+    may_join = objects.sphere & (objects.exact | objects.untextured) & \
+        (refractivity[objects.material] == 0)
+    m = objects.to_world[may_join]
     eye = np.asarray(model.camera.eye, np.float64)
-
-    def joins(objs, m):
-        """Which of the spheres ``objs`` (to_world ``m``) may join: opaque, the eye outside."""
-        opaque = np.array([model.materials[obj.material].refractivity == 0 for obj in objs], bool)
-        eye_local = np.linalg.solve(m[:, :3, :3], (eye - m[:, :3, 3])[:, :, None])[:, :, 0]
-        return opaque & (np.linalg.norm(eye_local, axis=1) > 1.001)
-
-    m = np.array([to_world for _, to_world, _ in spheres], np.float64).reshape(-1, 4, 4)
-    member = joins([obj for obj, _, _ in spheres], m)
-    ellipsoids = []  # per tessellated entry: which of its objects join (None: not spheres)
-    for surface_id, kind, to_world, objs in tessellated:
-        ellipsoids.append(joins(objs, to_world) if kind is ObjectKind.SPHERE
-                          and untextured(objs[0]) else None)
-    count = np.count_nonzero(member) + sum(np.count_nonzero(e) for e in ellipsoids
-                                           if e is not None)
-    if count < options.sphere_set:
-        return spheres, [], None, tessellated
-    members = [s for s, k in zip(spheres, member) if k]
-    to_world, left = [m[member]], []
-    for entry, joined in zip(tessellated, ellipsoids):
-        if joined is None or not joined.any():
-            left.append(entry)
-            continue
-        surface_id, kind, transforms, objs = entry
-        members += [(obj, None, surface_id) for obj, k in zip(objs, joined) if k]
-        to_world.append(transforms[joined])
-        if not joined.all():
-            left.append((surface_id, kind, transforms[~joined],
-                         [obj for obj, k in zip(objs, joined) if not k]))
-    return ([s for s, k in zip(spheres, member) if not k], members, np.concatenate(to_world),
-            left)
+    eye_local = np.linalg.solve(m[:, :3, :3], (eye - m[:, :3, 3])[:, :, None])[:, :, 0]
+    member[may_join] = np.linalg.norm(eye_local, axis=1) > 1.001
+    if np.count_nonzero(member) < options.sphere_set:
+        member[:] = False
+    return member
 
 
-def sphere_set_shape(members, to_world, model, surfaces, mi) -> dict:
-    """The shape of the sphere set ([(object, to_world rows, surface id)], their to_world
-    (n, 4, 4)): Mitsuba's
-    ``ellipsoids`` holding them in this order, its BSDF a ``raysurfaceset`` giving each
-    one's surface: a reference to a shared or textured surface, or a row of its table of
-    the materials that only its untextured spheres use (recorded in ``surfaces.tabled``:
-    they get no ``rayphong`` of their own)."""
-    data = sphere_set.pack(to_world)
-    member_ids = {id(obj) for obj, _, _ in members}
-    used_elsewhere = {obj.material for obj in model.objects
-                      if id(obj) not in member_ids or obj.texture is not None} | \
-        {mesh.material for mesh in model.meshes}
-    shared, rows = {}, {}  # surface id -> its index among the shared; material -> its row
-    for obj, _, surface_id in members:
-        if surface_id == f"mat{obj.material}" and obj.material not in used_elsewhere:
-            rows.setdefault(obj.material, len(rows))
-        else:
-            shared.setdefault(surface_id, len(shared))
-    surface_of = np.array([rows[obj.material] + len(shared) if obj.material in rows
-                           else shared[surface_id] for obj, _, surface_id in members], np.float32)
-    table = np.array([sphere_set.material_row(model.materials[i]) for i in rows], np.float32)
-    surfaces.tabled |= {model.materials[i].index for i in rows}
+def sphere_set_shape(objects: CurvedObjects, member, model, surfaces, mi) -> dict:
+    """The shape of the sphere set, whose members are ``objects[member]``: Mitsuba's
+    ``ellipsoids`` holding the exact spheres then the ellipsoids, each in object order, its
+    BSDF a ``raysurfaceset`` giving each one's surface: a reference to a shared or textured
+    surface, or a row of its table of the materials that only its untextured spheres use
+    (recorded in ``surfaces.tabled``: they get no ``rayphong`` of their own). Built in bulk:
+    the rows and the shared surfaces are numbered in order of first use."""
+    exact, ellipsoids = np.flatnonzero(member & objects.exact), \
+        np.flatnonzero(member & ~objects.exact)
+    order = np.concatenate([exact, ellipsoids])
+    data = sphere_set.pack(np.concatenate([objects.sphere_to_world(exact),
+                                           objects.to_world[ellipsoids]]))
+    material, untextured_member = objects.material[order], objects.untextured[order]
+    # a material is used elsewhere by a curved object outside the set, by a textured member,
+    # by an object of another kind (a plane, a triangle) or by a mesh
+    used_elsewhere = np.zeros(len(model.materials), bool)
+    used_elsewhere[objects.material[~member]] = True
+    used_elsewhere[material[~untextured_member]] = True
+    used_elsewhere[[obj.material for obj in model.objects if obj.kind not in CURVED]] = True
+    used_elsewhere[[mesh.material for mesh in model.meshes]] = True
+    tabled = untextured_member & ~used_elsewhere[material]
+    # the table's rows: its materials in order of first use
+    row_materials, first = np.unique(material[tabled], return_index=True)
+    row_materials = row_materials[np.argsort(first, kind="stable")]
+    row_of_material = np.zeros(len(model.materials), np.int64)
+    row_of_material[row_materials] = np.arange(len(row_materials))
+    # the shared surfaces, in order of first use: read once per run of members of a group
+    # (a group's objects share their surface)
+    shared_surfaces = {}
+    others = np.flatnonzero(~tabled)
+    new_run = np.diff(objects.group[order[others]], prepend=-1) != 0
+    index_of_run = np.array(
+        [shared_surfaces.setdefault(objects.groups[g][0], len(shared_surfaces))
+         for g in objects.group[order[others[new_run]]].tolist()], np.int64)
+    surface_of = np.empty(len(order), np.float32)
+    surface_of[others] = index_of_run[np.cumsum(new_run) - 1]
+    surface_of[tabled] = row_of_material[material[tabled]] + len(shared_surfaces)
+    surfaces.tabled |= set(row_materials.tolist())
     bsdf = {"type": "raysurfaceset", "surface_of": mi.TensorXf(surface_of)} | {
-        f"surface_{j}": {"type": "ref", "id": surface_id} for surface_id, j in shared.items()}
-    if rows:
+        f"surface_{j}": {"type": "ref", "id": surface_id}
+        for surface_id, j in shared_surfaces.items()}
+    if len(row_materials):
+        table = sphere_set.material_table([model.materials[i] for i in row_materials.tolist()])
         bsdf |= {"materials": mi.TensorXf(table.ravel()),
-                 "material_ids": mi.TensorXf(np.array([model.materials[i].index for i in rows],
-                                                      np.float32))}
+                 "material_ids": mi.TensorXf(row_materials.astype(np.float32))}
     return {"type": "ellipsoids", "data": mi.TensorXf(data), "extent": sphere_set.EXTENT,
             "bsdf": bsdf}
 
 
 def matrices(objs) -> np.ndarray:
-    """The objects' to_world matrices, (n, 4, 4) float64."""
-    return np.array(list(map(operator.attrgetter("to_world"), objs)), dtype=np.float64).reshape(-1, 4, 4)
+    """The objects' to_world matrices, (n, 4, 4) float64 (read as one stream of floats)."""
+    rows = chain.from_iterable(map(operator.attrgetter("to_world"), objs))
+    return np.fromiter(chain.from_iterable(rows), np.float64, 16 * len(objs)).reshape(-1, 4, 4)
 
 
 def plane(obj, model, mi) -> dict:

@@ -10,7 +10,7 @@ axes each is an exact sphere, with unequal ones an exact ellipsoid. The translat
 (``plugins/whitted/hits.py``) reads them back; this module is the layout both use.
 
 The set's BSDF (``raysurfaceset``) holds a table of the materials only its members use, a
-row each (``material_row``).
+row each (``material_table``).
 
 Which spheres: those whose material is opaque (kt = 0) and that do not contain the eye,
 under a similarity transform without mirroring (drawn by Mitsuba's ``sphere`` otherwise)
@@ -37,6 +37,9 @@ not the same object space -- so ellipsoids with a texture stay tessellated (thei
 
 from __future__ import annotations
 
+import operator
+from itertools import chain
+
 import numpy as np
 
 from raymitsuba.model import Material
@@ -49,9 +52,14 @@ EXTENT = 1.0  # the ellipsoids' ``extent``: the scale is the radius
 MATERIAL_COLUMNS = 3 + len(Material.FIELDS) - 1
 
 
-def material_row(material: Material) -> list:
-    """``material`` as a row of the set's material table."""
-    return list(material.color) + [getattr(material, name) for name in Material.FIELDS[1:]]
+def material_table(materials) -> np.ndarray:
+    """The set's material table (n, MATERIAL_COLUMNS) float32 of ``materials``: a row each,
+    the color r g b, then the other fields of ``Material.FIELDS`` in their order (read as
+    one stream of floats)."""
+    fields = operator.attrgetter(*Material.FIELDS)
+    values = chain.from_iterable((*color, *rest) for color, *rest in map(fields, materials))
+    return np.fromiter(values, np.float64, MATERIAL_COLUMNS * len(materials)) \
+        .astype(np.float32).reshape(-1, MATERIAL_COLUMNS)
 
 
 def material_column(field: str):
