@@ -57,6 +57,7 @@ class SurfaceSet(mi.BSDF):
         # The distinct surfaces (shared ones, then the table's rows) and, per primitive, the
         # index of its surface
         self.surfaces = tuple(shared) + self.rows
+        self.table_from = len(shared)  # (the rows, read in bulk from self.table)
         self.surface_of = props.get("surface_of").numpy().astype(np.uint32)
         self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.GlossyReflection \
             | mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
@@ -116,8 +117,6 @@ class TableRow:
     def __init__(self, surface_set, row):
         self.set, self.row = surface_set, row
         self.host = None  # the host values, read from the set's table on first use
-        for field in FIELDS:
-            setattr(self, field, None)
 
     @property
     def material(self):
@@ -130,3 +129,7 @@ class TableRow:
             self.host = {field: tuple(values[material_column(field)]) if field == "color"
                          else values[material_column(field)] for field in FIELDS}
         return self.host
+
+
+for _field in FIELDS:  # a row's parameters: None (class attributes) until registered
+    setattr(TableRow, _field, None)

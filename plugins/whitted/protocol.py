@@ -42,6 +42,13 @@ class SurfaceSet(Protocol):
 
     surfaces: tuple  # of Surface: the distinct surfaces of the primitives
     surface_of: object  # numpy uint32, one per primitive: the index of its surface
+    # surfaces[table_from:] are the rows of a material table, read in bulk (a set may hold
+    # 10^5 of them): each its own material (``row.material is row``), found in no other
+    # set or shape, with no checkerboard and no image texture
+    table_from: int
+    # numpy float32 (rows, 2 + len(SURFACE_PARAMETERS)): row k the host values of
+    # surfaces[table_from + k]: ``color``'s three, then the other parameters in order
+    table: object
 
 
 class SurfaceMaterial(Protocol):

@@ -106,53 +106,67 @@ class Layout:
     """What a surface table keeps from one render to the next of the same shapes (fixed once
     a scene is loaded): the slots, the materials, the checker sizes and the image textures,
     read from the scene's plugins by a Python pass over the shapes and the distinct
-    surfaces."""
+    surfaces -- but for a surface set's table rows, which are read as blocks (``tables``)."""
 
     def __init__(self, scene, key):
         """The layout of ``scene``, whose shapes have the registry ids ``key``."""
-        bsdfs, slot_of_shape, primitives = distinct_bsdfs(scene.shapes(), key)
-        materials, material_of_slot = distinct_materials(bsdfs)
+        bsdfs, tables, slot_of_shape, primitives = distinct_bsdfs(scene.shapes(), key)
+        materials, material_of_slot = distinct_materials(bsdfs, tables)
         self.key = key  # the shapes' registry ids (scene.shapes() order): whose layout this is
-        self.count = len(bsdfs)  # the slots: the distinct BSDFs, in increasing registry id
+        self.count = len(bsdfs) + sum(len(rows) for _, rows in tables)  # the slots
         self.slot_of_shape = slot_of_shape  # UInt32: the slot by shape registry id
         self.primitives = primitives  # PrimitiveSlots of the surface sets' shapes, or None
         self.materials = materials  # the distinct materials of the surfaces
         self.material_of_slot = material_of_slot  # by slot, the index of its material
-        self.checker_size = checker_sizes(bsdfs)  # Float by slot; None: no checkerboard at all
+        # The surface sets' table rows: [(set, its rows)], their slots following the others'
+        # in this order (the rows have no checkerboard, no texture: their own material each)
+        self.tables = tables
+        self.checker_size = checker_sizes(bsdfs, self.count)  # Float by slot; None: none at all
         # The distinct image textures and, per position k in a surface's image_textures, the
         # texture at that position by slot (UInt32: its index + 1; 0: none)
-        self.textures, self.texture_of_slot = image_textures(bsdfs)
+        self.textures, self.texture_of_slot = image_textures(bsdfs, self.count)
         # Whether shading reads the hits' texture coordinates (HitTable.update's uv)
         self.uses_uv = self.checker_size is not None or bool(self.textures)
 
 
 def distinct_bsdfs(shapes, shape_ids):
-    """(The distinct surfaces of ``shapes`` in slot order (increasing registry id), each
-    checked against the surface interface; the slot by shape registry id, UInt32; the
-    :class:`PrimitiveSlots` of the shapes whose BSDF is a surface set, or None)."""
+    """(The distinct surfaces of ``shapes`` that are no table row, in slot order (increasing
+    registry id), each checked against the surface interface; the surface sets' table rows
+    [(set, rows)], whose slots follow, in the order found; the slot by shape registry id,
+    UInt32; the :class:`PrimitiveSlots` of the shapes whose BSDF is a surface set, or
+    None)."""
     if not shapes:
-        return [], dr.zeros(mi.UInt32, MIN_ROWS), None
+        return [], [], dr.zeros(mi.UInt32, MIN_ROWS), None
     # (Not ``shapes_dr().bsdf()``: that getter is a kernel, folded to a constant when
     # all shapes share one BSDF, so its code would depend on the scene.)
-    bsdfs, index_of_shape, sets = {}, np.zeros(len(shapes), np.int64), []
+    bsdfs, index_of_shape, sets, tables = {}, np.full(len(shapes), -1, np.int64), [], []
+    rows_found = 0
     for i, shape in enumerate(shapes):
         bsdf = shape.bsdf()
         if isinstance(bsdf, SurfaceSet):  # a surface per primitive: its index, per primitive
-            indices = np.array([bsdfs.setdefault(id(surface), (len(bsdfs), surface, shape))[0]
-                                for surface in bsdf.surfaces], np.int64)
+            first = bsdf.table_from
+            rows = bsdf.surfaces[first:]
+            indices = np.empty(len(bsdf.surfaces), np.int64)
+            indices[:first] = [bsdfs.setdefault(id(surface), (len(bsdfs), surface, shape))[0]
+                               for surface in bsdf.surfaces[:first]]
+            # a table row's index: -1 - its position among all the tables' rows
+            indices[first:] = -1 - (rows_found + np.arange(len(rows)))
+            rows_found += len(rows)
+            tables.append((bsdf, rows, shape))
             sets.append((i, indices[bsdf.surface_of]))
             continue
         index_of_shape[i] = bsdfs.setdefault(id(bsdf), (len(bsdfs), bsdf, shape))[0]
     found = list(bsdfs.values())
-    # Mitsuba's BSDFs by registry id, then the surfaces that are not Mitsuba objects (a
-    # surface set's table rows) in the order found
+    # Mitsuba's BSDFs by registry id, then any surface that is no Mitsuba object in the
+    # order found; the tables' rows after them
     registry_ids = [dr.reinterpret_array(mi.UInt32, mi.BSDFPtr(bsdf))[0]
                     if isinstance(bsdf, mi.BSDF) else 0xFFFFFFFF for _, bsdf, _ in found]
     order = np.argsort(registry_ids, kind="stable")
     slot_of_index = np.empty(len(found), np.uint32)
     slot_of_index[order] = np.arange(len(found), dtype=np.uint32)
     table = np.zeros(max(int(shape_ids.max()) + 1, MIN_ROWS), dtype=np.uint32)
-    table[shape_ids] = slot_of_index[index_of_shape]
+    own = index_of_shape >= 0  # (a surface set's shape: slot 0; its primitives' own follow)
+    table[shape_ids[own]] = slot_of_index[index_of_shape[own]]
     primitives = PrimitiveSlots(sets, shape_ids, slot_of_index, len(table)) if sets else None
     # (a surface that is no Mitsuba object -- a table row -- is checked once per class)
     checked = set()
@@ -163,7 +177,12 @@ def distinct_bsdfs(shapes, shape_ids):
             check_surface(surface, shape)
             checked.add(type(surface))
         surfaces.append(surface)
-    return surfaces, jit_array(mi.UInt32, table), primitives
+    for _, rows, shape in tables:
+        if rows and type(rows[0]) not in checked:
+            check_surface(rows[0], shape)
+            checked.add(type(rows[0]))
+    tables = [(surface_set, rows) for surface_set, rows, _ in tables]
+    return surfaces, tables, jit_array(mi.UInt32, table), primitives
 
 
 class PrimitiveSlots:
@@ -177,7 +196,11 @@ class PrimitiveSlots:
         slots, start = [], 0
         for i, indices in sets:
             first[shape_ids[i]] = start
-            slots.append(slot_of_index[indices])
+            # a table row's index -1 - k: its slot follows the other surfaces' slots
+            slot = (len(slot_of_index) - 1 - indices).astype(np.uint32)
+            own = indices >= 0
+            slot[own] = slot_of_index[indices[own]]
+            slots.append(slot)
             start += len(indices)
         by_row = np.concatenate(slots)
         self.first = jit_array(mi.UInt32, first)
@@ -186,30 +209,37 @@ class PrimitiveSlots:
         self.slots = np.unique(by_row)
 
 
-def distinct_materials(bsdfs):
-    """(Each distinct material of ``bsdfs`` once; by slot, the index of its material)."""
-    materials, material_of_slot = {}, np.zeros(len(bsdfs), np.int64)
+def distinct_materials(bsdfs, tables):
+    """(Each distinct material of ``bsdfs`` once, then the tables' rows, each its own
+    material; by slot, the index of its material)."""
+    materials = {}
+    rows = sum(len(r) for _, r in tables)
+    material_of_slot = np.zeros(len(bsdfs) + rows, np.int64)
     for slot, bsdf in enumerate(bsdfs):
         material_of_slot[slot] = materials.setdefault(id(bsdf.material),
                                                       (len(materials), bsdf.material))[0]
-    return [material for _, material in materials.values()], material_of_slot
+    material_of_slot[len(bsdfs):] = len(materials) + np.arange(rows)
+    return [material for _, material in materials.values()] + \
+        [row for _, r in tables for row in r], material_of_slot
 
 
-def checker_sizes(bsdfs):
-    """The checkerboard's square size by slot (Float; 0: none), None if no surface has one."""
-    sizes = np.zeros(max(len(bsdfs), MIN_ROWS), np.float32)
+def checker_sizes(bsdfs, count):
+    """The checkerboard's square size by slot (Float; 0: none), None if no surface has one
+    (``count`` slots: the table rows, after ``bsdfs``, have none)."""
+    sizes = np.zeros(max(count, MIN_ROWS), np.float32)
     sizes[:len(bsdfs)] = [float(bsdf.checker_size) for bsdf in bsdfs]
     return jit_array(mi.Float, sizes) if np.any(sizes > 0) else None
 
 
-def image_textures(bsdfs):
+def image_textures(bsdfs, count):
     """(The distinct image textures; for each position k in a surface's tuple of image
-    textures, the texture at that position by slot: UInt32, its index + 1, 0: none)."""
+    textures, the texture at that position by slot: UInt32, its index + 1, 0: none; of
+    ``count`` slots: the table rows, after ``bsdfs``, have none)."""
     textures, rows = {}, []
     for slot, bsdf in enumerate(bsdfs):
         for k, texture in enumerate(bsdf.image_textures):
             if k == len(rows):
-                rows.append(np.zeros(max(len(bsdfs), MIN_ROWS), np.uint32))
+                rows.append(np.zeros(max(count, MIN_ROWS), np.uint32))
             rows[k][slot] = textures.setdefault(id(texture), (len(textures) + 1, texture))[0]
     return [texture for _, texture in textures.values()], [mi.UInt32(row) for row in rows]
 
@@ -222,15 +252,22 @@ HOST_RECORD = np.dtype([(name, np.float32, 3) if name == "color" else (name, np.
 
 def host_parameters(layout):
     """Each parameter's values by slot on the host ({name: float32 array}, ``color`` (rows,
-    3)), from the materials' ``host_values`` (read in one pass); rows past the last slot are
-    zeros."""
+    3)), from the materials' ``host_values`` (read in one pass) and the tables (read as
+    arrays); rows past the last slot are zeros."""
     values_of = itemgetter(*SURFACE_PARAMETERS)
-    records = np.array([values_of(material.host_values) for material in layout.materials],
-                       HOST_RECORD)
-    rows = max(layout.count, MIN_ROWS)
+    rows = sum(len(r) for _, r in layout.tables)
+    own = len(layout.materials) - rows  # the materials that are no table row
+    records = np.empty(len(layout.materials), HOST_RECORD)
+    records[:own] = [values_of(material.host_values) for material in layout.materials[:own]]
+    if rows:  # the tables' columns: color's three, then the others in order (protocol.py)
+        table = np.concatenate([surface_set.table for surface_set, _ in layout.tables])
+        records["color"][own:] = table[:, 0:3]
+        for k, name in enumerate(SURFACE_PARAMETERS[1:], start=3):
+            records[name][own:] = table[:, k]
+    slots = max(layout.count, MIN_ROWS)
     host = {}
     for name in SURFACE_PARAMETERS:
-        by_slot = np.zeros((rows,) + records[name].shape[1:], np.float32)
+        by_slot = np.zeros((slots,) + records[name].shape[1:], np.float32)
         by_slot[:layout.count] = records[name][layout.material_of_slot]
         host[name] = by_slot
     return host
