@@ -266,35 +266,58 @@ BOUNDING_RADIUS = {ObjectKind.SPHERE: 1.0, ObjectKind.CYLINDER: math.sqrt(1.25),
 def shapes(model, options, surfaces, mi) -> dict:
     """Every object's shape: analytic spheres and planes one by one, the rest merged per
     surface (objects grouped by (kind, surface) in one pass, then built in bulk)."""
-    groups = {}  # by kind and surface: (kind, material, texture, checker)
-    for obj in model.objects:
-        groups.setdefault((obj.kind, obj.material, obj.texture, obj.checker), []).append(obj)
+    groups = Groups(model.objects)
     out, triangles, curved = {}, [], []
-    for (kind, *_), objs in groups.items():
-        surface_id = surfaces.id(objs[0])
+    for g, (kind, *_) in enumerate(groups.keys):
+        surface_id = surfaces.id(model.objects[groups.first[g]])
         if kind is ObjectKind.PLANE:
             ref = {"type": "ref", "id": surface_id}
-            for obj in objs:
+            for obj in groups.objects(g):
                 out[f"plane_{obj.line}"] = plane(obj, model, mi) | {"bsdf": ref}
         elif kind is ObjectKind.TRIANGLE:
-            triangles.append(triangle_mesh(objs, mi) | {"bsdf": {"type": "ref", "id": surface_id}})
+            triangles.append(triangle_mesh(groups.objects(g), mi) |
+                             {"bsdf": {"type": "ref", "id": surface_id}})
         else:
-            curved.append((surface_id, kind, objs))
-    objects = CurvedObjects(curved, model)
+            curved.append((g, surface_id))
+    objects = CurvedObjects(groups, curved, model)
     member = set_members(objects, model, options)
     names = ShapeNames()
     single = np.flatnonzero(objects.exact & ~member)
     for i, rows in zip(single.tolist(), objects.sphere_to_world(single).tolist()):
         obj = objects.objs[i]
-        out[names.next("sphere", obj.line)] = {"type": "sphere",
-                                               "to_world": mi.ScalarTransform4f(rows),
-                                               "bsdf": {"type": "ref",
-                                                        "id": objects.surface_ids[i]}}
+        out[names.next("sphere", obj.line)] = {
+            "type": "sphere", "to_world": mi.ScalarTransform4f(rows),
+            "bsdf": {"type": "ref", "id": objects.surface_id[objects.group[i]]}}
     if member.any():
         out["spheres"] = sphere_set_shape(objects, member, model, surfaces, mi)
     out |= {f"triangles_{k}": mesh for k, mesh in enumerate(triangles)}
     meshes = quadric_meshes(objects.tessellated(~objects.exact & ~member), model, options, mi)
     return out | {f"quadrics_{k}": mesh for k, mesh in enumerate(meshes)}
+
+
+class Groups:
+    """The objects grouped by kind and surface, ``keys[g]`` = (kind, material, texture,
+    checker) in order of first use: ``group[i]`` the group of object i, ``first[g]`` its
+    first object, ``order`` the objects sorted by group (in file order within one),
+    ``start[g]:start[g + 1]`` a group's span of ``order``. One dict look-up per object; no
+    Python list per group (a scene of 10^5 spheres with their own materials has 10^5)."""
+
+    def __init__(self, objs):
+        self.objs = objs
+        index = {}
+        self.group = np.fromiter([index.setdefault(key, len(index)) for key in
+                                  map(operator.attrgetter("kind", "material", "texture",
+                                                          "checker"), objs)],
+                                 np.int64, len(objs))
+        self.keys = list(index)
+        self.first = np.unique(self.group, return_index=True)[1]
+        self.order = np.argsort(self.group, kind="stable")
+        self.start = np.concatenate([[0], np.cumsum(np.bincount(self.group,
+                                                                minlength=len(self.keys)))])
+
+    def objects(self, g) -> list:
+        """The objects of group ``g``, in file order."""
+        return [self.objs[i] for i in self.order[self.start[g]:self.start[g + 1]].tolist()]
 
 
 class ShapeNames:
@@ -311,26 +334,27 @@ class ShapeNames:
 
 
 class CurvedObjects:
-    """The curved objects (spheres, cylinders, cones) of the scene in one set of arrays, in
-    the order of their groups ([(surface id, kind, objects)], as :func:`shapes` makes them),
-    classified all at once: per object its ``to_world`` (n, 4, 4) float64, its ``group``
-    (index into the groups), ``material``, whether it is ``untextured`` and a ``sphere``,
-    and whether it is ``exact``: a sphere under a similarity without mirroring (Mitsuba's
-    analytic sphere, or the sphere set); ``objs`` and ``surface_ids`` the objects and their
-    surfaces' ids. No Python work per object beyond reading its fields once: a scene has
-    up to millions of them."""
+    """The curved objects (spheres, cylinders, cones) of the scene in one set of arrays,
+    group by group (``curved``: [(group, surface id)] in group order), classified all at
+    once: per object its ``to_world`` (n, 4, 4) float64, its ``group`` (an index of
+    ``groups``), ``material``, whether it is ``untextured`` and a ``sphere``, and whether
+    it is ``exact``: a sphere under a similarity without mirroring (Mitsuba's analytic
+    sphere, or the sphere set); ``objs`` the objects, ``surface_id`` by group. No Python
+    work per object beyond reading its fields once: a scene has up to millions of them."""
 
-    def __init__(self, groups, model):
+    def __init__(self, groups: Groups, curved, model):
         self.groups = groups
-        self.objs = [obj for _, _, group in groups for obj in group]
-        sizes = np.fromiter(map(len, (group for _, _, group in groups)), np.int64, len(groups))
-        self.group = np.repeat(np.arange(len(groups)), sizes)
-        self.surface_ids = [surface_id for (surface_id, _, group) in groups for _ in group]
+        self.surface_id = dict(curved)
+        spans = [groups.order[groups.start[g]:groups.start[g + 1]] for g, _ in curved]
+        index = np.concatenate(spans) if spans else np.zeros(0, np.int64)
+        self.objs = [groups.objs[i] for i in index.tolist()]
+        self.group = groups.group[index]
         self.to_world = matrices(self.objs)
         self.material = np.fromiter(map(operator.attrgetter("material"), self.objs), np.int64,
                                     len(self.objs))
-        group_sphere = np.array([kind is ObjectKind.SPHERE for _, kind, _ in groups], bool)
-        group_untextured = np.array([untextured(group[0]) for _, _, group in groups], bool)
+        group_sphere = np.array([kind is ObjectKind.SPHERE for kind, *_ in groups.keys], bool)
+        group_untextured = np.array([texture is None and checker is None
+                                     for _, _, texture, checker in groups.keys], bool)
         self.sphere = group_sphere[self.group]
         self.untextured = group_untextured[self.group]
         self.exact = self.sphere & sphere_set.is_similarity(self.to_world[:, :3, :3])
@@ -346,9 +370,9 @@ class CurvedObjects:
         starts = np.flatnonzero(np.diff(self.group[index], prepend=-1))
         out = []
         for start, stop in zip(starts.tolist(), starts[1:].tolist() + [len(index)]):
-            surface_id, kind, _ = self.groups[self.group[index[start]]]
+            group = int(self.group[index[start]])
             picked = index[start:stop]
-            out.append((surface_id, kind, self.to_world[picked],
+            out.append((self.surface_id[group], self.groups.keys[group][0], self.to_world[picked],
                         [self.objs[i] for i in picked.tolist()]))
         return out
 
@@ -406,7 +430,7 @@ def sphere_set_shape(objects: CurvedObjects, member, model, surfaces, mi) -> dic
     others = np.flatnonzero(~tabled)
     new_run = np.diff(objects.group[order[others]], prepend=-1) != 0
     index_of_run = np.array(
-        [shared_surfaces.setdefault(objects.groups[g][0], len(shared_surfaces))
+        [shared_surfaces.setdefault(objects.surface_id[g], len(shared_surfaces))
          for g in objects.group[order[others[new_run]]].tolist()], np.int64)
     surface_of = np.empty(len(order), np.float32)
     surface_of[others] = index_of_run[np.cumsum(new_run) - 1]
