@@ -16,6 +16,7 @@ from ..tree import reflect, refract
 from .lattice import (CHAIN_CHECKER, CHAIN_SHADOW, CHAIN_TIR, CHAIN_VISIBILITY, NO_HIT, STOP,
                       _host_keys, picked)
 from .terms import _evaluated, stacked
+
 CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
 # the chain's keys of a sample whose chain ended before the bounce (those of the first hit
 # are set for every sample)

@@ -10,6 +10,7 @@ import numpy as np
 from ..arrays import jit_array
 from .lattice import CHAIN_CHECKER, CHECKER, POINTS, at, flat, picked
 from .terms import on_lanes, stacked
+
 # a checker pair with more lines than this between its samples is left out (the pattern
 # finer than the lattice there: aliased; its lines' terms nearly cancel)
 CHECKER_LINES = 8

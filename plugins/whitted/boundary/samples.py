@@ -11,6 +11,7 @@ from ..arrays import jit_array
 from .chain import CHAIN_DEPTH, DEFAULT
 from .lattice import NO_HIT, _host, _host_keys, lattice_index, ring_points
 from .spot import has_cone, spot_cosine
+
 # bytes of one sample's keys (shape, face, distance, normal, checker cell, the chain's first
 # ray, whether it goes on and is a total internal reflection and, per bounce of the chain,
 # shape, face, distance, cell, TIR flag) and per light (lit, blocker)

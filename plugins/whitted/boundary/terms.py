@@ -12,8 +12,8 @@ import mitsuba as mi
 import numpy as np
 
 from ..arrays import jit_array
-from .lattice import (CHECKER, NO_HIT, POINTS, SHADOW, VISIBILITY, _host, at, flat,
-                      span)
+from .lattice import CHECKER, NO_HIT, POINTS, SHADOW, VISIBILITY, _host, at, flat, span
+
 PAIRS_PER_CHUNK = 1 << 16
 LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
 # ... of a visibility edge of the surface seen: closer, where the rays either side are

@@ -13,6 +13,7 @@ from ..arrays import jit_array
 from ..hits import MESH, SMOOTH, SPHERE
 from .lattice import NO_HIT, STOP, at
 from .terms import at_l_and_r, on_lanes, signs_differ, stacked
+
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
 
 

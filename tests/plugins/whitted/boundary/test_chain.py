@@ -11,7 +11,7 @@ from support_edges import MIRRORED_SHADOW, assert_matches_finite_differences, pa
 
 @pytest.mark.parametrize("text, key, direction, h", [
     (MIRRORED_SHADOW, "light1.position", (0.6, 0.0, -0.8), 0.05),  # a shadow in a mirror
-], ids=['mirrored-shadow'])
+], ids=["mirrored-shadow"])
 def test_a_shadow_seen_in_a_mirror_matches_finite_differences(mi, text, key, direction, h):
     """A sphere's shadow on a wall, seen directly and in a mirror floor, the light moved."""
     assert_matches_finite_differences(mi, text, key, direction, h)

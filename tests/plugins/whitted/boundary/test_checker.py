@@ -29,8 +29,9 @@ plane
 
 @pytest.mark.parametrize("text, key, direction, h", [
     (CHECKER, "camera.eye", (0.6, 0.0, -0.8), 0.02),  # checker lines
-], ids=['checker'])
-def test_checker_lines_seen_by_a_moving_camera_match_finite_differences(mi, text, key, direction, h):
+], ids=["checker"])
+def test_checker_lines_seen_by_a_moving_camera_match_finite_differences(
+        mi, text, key, direction, h):
     """A checkered plane seen by a moving camera."""
     assert_matches_finite_differences(mi, text, key, direction, h)
 

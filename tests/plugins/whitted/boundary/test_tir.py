@@ -11,7 +11,7 @@ from support_edges import SNELL, assert_matches_finite_differences
 
 @pytest.mark.parametrize("text, key, direction, h", [
     (SNELL, "mat1.ior", (1.0,), 0.002),  # total internal reflection switching
-], ids=['tir'])
+], ids=["tir"])
 def test_snells_window_moves_with_eta_as_finite_differences(mi, text, key, direction, h):
     """Looking up from under a glass surface: total internal reflection switches on at
     the critical angle, which eta moves."""

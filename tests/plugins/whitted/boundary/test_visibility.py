@@ -45,8 +45,9 @@ def test_a_slanted_edge_moves_by_its_closed_form(mi):
 @pytest.mark.parametrize("text, key, direction, h", [
     (SPHERE, "translate1.offset", (0.6, -0.8, 0.0), 0.03),  # a silhouette
     (SPHERE, "camera.eye", (0.6, 0.0, -0.8), 0.03),  # the same, from the camera
-], ids=['silhouette', 'camera'])
-def test_a_silhouette_moved_or_seen_by_a_moving_camera_matches_finite_differences(mi, text, key, direction, h):
+], ids=["silhouette", "camera"])
+def test_a_silhouette_moved_or_seen_by_a_moving_camera_matches_finite_differences(
+        mi, text, key, direction, h):
     """A sphere's silhouette, the sphere moved or the camera."""
     assert_matches_finite_differences(mi, text, key, direction, h)
 
