@@ -22,7 +22,7 @@ picture (a glass ball in front of a checkered wall) is piecewise constant in the
 point: inside a square the color does not change as the refracted ray moves, so most of
 the information about eta lies in the checker *edges* moving across pixels. With
 ``--spp k^2`` lattices the derivative includes them (the boundary terms along the specular
-chain, plugins/whitted/boundary.py; docs/gradients.md measures them), but the loss is full
+chain, plugins/whitted/boundary/; docs/gradients.md measures them), but the loss is full
 of basins: each checker square seen through the ball makes one. Scanned at kt = 0.5 (the
 start) with ``checkerboard 0.4``, 64 x 64, spp 16, the loss has its least value at eta =
 1.5 in a basin from about 1.35 to 1.7, and a barrier at about 1.25: from 1.15 the steps

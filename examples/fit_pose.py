@@ -10,7 +10,7 @@ the scene as written; the fit starts with ``camera.eye`` moved by (0.2, 0, 0) an
 look-at point, the up vector and the field of view (plugins/whitted/geometry_ad.py); what
 the pose changes are mostly edges -- the spheres' silhouettes, their shadows, the checker
 lines -- whose derivatives are the boundary terms of the ``--spp k^2`` lattice
-(plugins/whitted/boundary.py).
+(plugins/whitted/boundary/).
 """
 
 from __future__ import annotations

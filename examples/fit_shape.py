@@ -7,7 +7,7 @@ sphere at ``translate2.offset`` = (0.2, 0, 0) and ``scale2.factors`` = 0.8 (unif
 starts 0.3 units to the right and 20 % larger. What tells the optimizer where the sphere is
 sits mostly on edges: its silhouette against the floor and the background, and the edge of
 its shadow on the floor. Their derivatives are the boundary terms of the pixel-integrated
-image on the ``--spp k^2`` lattice (plugins/whitted/boundary.py); the shading of the sphere
+image on the ``--spp k^2`` lattice (plugins/whitted/boundary/); the shading of the sphere
 and of the floor adds the interior part. A scale of an analytic sphere stays uniform (the
 three factors get one gradient; a sphere cannot become an ellipsoid during a fit).
 

@@ -16,7 +16,8 @@ module             what it owns
 ``guards``         what a ray costs; the requests refused before tracing (BudgetError)
 ``antialias``      which pixels adaptive anti-aliasing refines, and how; its plan
 ``geometry_ad``    the geometry and camera keys' derivatives, attached to hits and rays
-``boundary``       the boundary terms of moving edges on the k x k lattice
+``boundary``       the boundary terms of moving edges on the k x k lattice (a package:
+                   a module per kind of edge, its docstring maps them)
 ``support``        which pixels of an adjoint pass can have an interior derivative
 ``arrays``         host arrays handed to Dr.Jit: private, aligned copies (one kernel each)
 =================  ===================================================================

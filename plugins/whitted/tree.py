@@ -151,7 +151,7 @@ class Tracer:
         from them would evaluate them alone. ``first_hit``: optional callable(si, ray, hit,
         shadows) given the first generation's hits and, per light, its shadow rays' closest
         blocker (a PreliminaryIntersection3f), lazily, as they are traced (the
-        boundary terms' keys, boundary.py, computed in the same kernel). ``queries``:
+        boundary terms' keys, boundary/samples.py, computed in the same kernel). ``queries``:
         optional: who answers the first generation's ray queries (``camera(scene, ray,
         coherent)``: each ray's closest hit; ``shadow(scene, light, ray, active)``: the
         closest blocker of light number ``light``'s shadow rays), recorded or replayed

@@ -1,7 +1,7 @@
 """The geometry's and the camera's keys attached to rays and hits (plugins/whitted/geometry_ad.py):
 here, the ``joint`` their derivatives pass through (the module docstring's "Cost"). What the
 keys' derivatives are worth is pinned against finite differences elsewhere
-(test_boundary.py, tests/test_parameters.py)."""
+(tests/plugins/whitted/boundary/, tests/test_parameters.py)."""
 
 from __future__ import annotations
 

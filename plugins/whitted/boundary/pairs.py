@@ -1,0 +1,201 @@
+"""The pairs (the package docstring, "Pairs"): the kinds of edges the keys move
+(:func:`moving_kinds`), the candidates (lattice neighbours whose keys differ), their
+classification into kinds (:meth:`Pairs.classify`: every kind's, at the first hit and
+along the chain) and which of them are formed (:meth:`Pairs.kept`,
+:meth:`Pairs.moving_edges`)."""
+
+import drjit as dr
+import numpy as np
+
+from .checker import crossed
+from .lattice import (CHAIN_CHECKER, CHAIN_SHADOW, CHAIN_TIR, CHAIN_VISIBILITY, CHECKER,
+                      KINDS, NO_HIT, POINTS, SHADOW, STOP, VISIBILITY, at, flat, nonzero)
+
+
+def moving_kinds(tracer, scene):
+    """The kinds of pairs whose edges some key with its gradient enabled moves (empty: a
+    derivative pass needs no boundary terms). A key that moves the geometry or the camera
+    moves every kind; a material's eta, what is seen through glass (the specular chain's
+    kinds); a light's position or direction, its shadow edges, the terminator and a spot's
+    cone (the shadow kinds). The others' surrogates would have no derivative: their pairs
+    are not formed."""
+    if tracer.geometry_ad is not None and tracer.geometry_ad.moves():
+        return set(range(KINDS))
+    kinds = set()
+    if tracer.surfaces is not None and any(  # eta moves what is seen through glass
+            dr.grad_enabled(material.ior) for material in tracer.surfaces.layout.materials):
+        kinds |= {CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW}
+    if any(light_moves(emitter) for emitter in scene.emitters()):
+        kinds |= {SHADOW, CHAIN_SHADOW}
+    return kinds
+
+
+def light_moves(emitter):
+    """Whether a key with its gradient enabled moves ``emitter`` (its position or direction:
+    its shadow edges, terminator and cone)."""
+    return any(dr.grad_enabled(value) for value in
+               (getattr(emitter, name, None) for name in ("position", "direction"))
+               if value is not None)
+
+
+class Pairs:
+    """The pairs of :class:`Boundary`'s lattice (a mixin of Boundary)."""
+
+    def pairs(self):
+        """Every lattice pair with an edge between: a dict of numpy arrays (one entry per
+        pair): L, R, O as (Y, X), the kind, the light (shadows), and what g is made of.
+
+        The pairs of each axis are classified among its candidates only: the pairs whose
+        samples differ in some key (a few percent of the lattice; every other pair has no
+        edge between), found by one pass of comparisons over the lattice."""
+        found = []
+        rows, cols = self.t.shape
+        bounces = self.chain_bounces()
+        for axis in (1, 0):  # rows (X, X + 1), then columns (Y, Y + 1)
+            ly, lx = self.candidates(axis, bounces)
+            L, R = (ly, lx), (ly + (axis == 0), lx + (axis == 1))
+            kind, light, depth = self.classify(L, R, bounces)
+            keep = self.kept(kind)
+            if not self.camera_moves:  # (if it does, every edge moves)
+                where = np.flatnonzero(keep)
+                keep[where] = self.moving_edges(kind[where], light[where],
+                                                flat(L, cols)[where], flat(R, cols)[where])
+            ly, lx = ly[keep], lx[keep]
+            ry, rx = ly + (axis == 0), lx + (axis == 1)
+            # the neighbours of L and R across the axis, either side (one side at the border):
+            # they give the edge's normal at the crossing (centred differences)
+            if axis == 1:
+                beside = [(np.minimum(y + 1, rows - 1), x) for y, x in ((ly, lx), (ry, rx))] \
+                    + [(np.maximum(y - 1, 0), x) for y, x in ((ly, lx), (ry, rx))]
+            else:
+                beside = [(y, np.minimum(x + 1, cols - 1)) for y, x in ((ly, lx), (ry, rx))] \
+                    + [(y, np.maximum(x - 1, 0)) for y, x in ((ly, lx), (ry, rx))]
+            points = dict(L=(ly, lx), R=(ry, rx), LA=beside[0], RA=beside[1], LB=beside[2],
+                          RB=beside[3])
+            found.append(dict(axis=np.full(len(ly), axis), kind=kind[keep].astype(np.int64),
+                              light=light[keep].astype(np.int64),
+                              depth=depth[keep].astype(np.int64), **points))
+        return self.one_crossing_per_line(
+            {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))
+                    if name in POINTS else np.concatenate([f[name] for f in found]))
+             for name in found[0]})
+
+    def candidates(self, axis, bounces):
+        """(Y, X) of L of the pairs along ``axis`` (1: rows, 0: columns) whose samples differ
+        in some key (the first hit's shape, face, light and checker cell, and those of the
+        chain's first ``bounces`` bounces), row-major: the lattice's order. None along the
+        ring: a pair has a sample of the image."""
+        planes = [self.shape, self.prim, *self.lit, self.cell[0], self.cell[1]]
+        for d in range(bounces):
+            planes += [self.chain_shape[d], self.chain_tir[d], self.chain_cell[d][0],
+                       self.chain_cell[d][1]]
+            planes += self.chain_lit[d * len(self.lights):(d + 1) * len(self.lights)]
+        # Each entry against the one ``step`` further in row-major order (its right or lower
+        # neighbour), the planes flat: comparisons of contiguous arrays, three times faster
+        # than of the lattice's 2-D views
+        rows, cols = self.rows, self.cols
+        step = 1 if axis == 1 else cols
+        differs = np.zeros(rows * cols, bool)  # (by L's flat position)
+        pair, other = differs[:-step], np.empty(rows * cols - step, bool)
+        for plane in planes:
+            values = plane.reshape(-1)
+            np.not_equal(values[:-step], values[step:], out=other)
+            pair |= other
+        # None along the ring: rows (L on the ring's rows, or R past the last column),
+        # columns (L on the ring's columns; past the last row none is compared)
+        lattice = differs.reshape(rows, cols)
+        if axis == 1:
+            lattice[[0, rows - 1]] = False
+            lattice[:, cols - 1] = False
+        else:
+            lattice[:, [0, cols - 1]] = False
+        return nonzero(lattice)
+
+    def classify(self, L, R, bounces):
+        """(kind (int8; -1: none, or left out), light, depth) of the pairs (L, R) (numpy
+        (Y, X) each, one entry per pair): what edge lies between their samples."""
+        L, R = flat(L, self.cols), flat(R, self.cols)  # (read at: see flat)
+        visibility = self.surface_differs(L, R, self.kind_of)
+        kind = np.full(visibility.shape, -1, np.int8)  # (small types: a pass per array)
+        light = np.zeros(visibility.shape, self.light_type)
+        kind[visibility] = VISIBILITY
+        same = ~visibility & (at(self.shape, L) != NO_HIT)
+        # On one surface, a pair across one kind of edge only: where a shadow edge and a
+        # checker line (or two shadow edges) pass between the same two samples, the jump
+        # f_L - f_R is the sum of both and belongs to neither alone (such pairs are left
+        # out: a share of the crossings that falls as 1/k). Checker lines, however many,
+        # are one crossing each (see one_crossing_per_line).
+        edges = np.zeros(visibility.shape, np.int16)
+        for j in range(len(self.lights)):
+            edge = same & (at(self.lit[j], L) != at(self.lit[j], R))
+            edges += edge
+            kind[edge], light[edge] = SHADOW, j
+        lines = crossed(self.cell, L, R)  # u and v lines crossed
+        checker = same & (lines > 0)
+        edges += checker
+        kind[checker] = CHECKER
+        kind[same & (edges > 1)] = -1
+        # Seen along the specular chain (mirrors, glass): the first bounce whose key
+        # differs, if the first hits are alike: total internal reflection switching at
+        # the surface the bounce leaves, else a visibility edge, checker lines or one
+        # shadow edge (a pair across edges of two kinds at that bounce is left out).
+        depth = np.full(visibility.shape, -1, np.int8)
+        pending = same & (edges == 0)
+        for d in range(bounces):  # (past every chain's end: no pair)
+            if not pending.any():
+                break
+            cs_l, cs_r = at(self.chain_shape[d], L), at(self.chain_shape[d], R)
+            tir = at(self.chain_tir[d], L) != at(self.chain_tir[d], R)
+            shape_differs = cs_l != cs_r
+            lines = crossed(self.chain_cell[d], L, R)
+            shadows = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
+            for j in range(len(self.lights)):
+                lit = self.chain_lit[d * len(self.lights) + j]
+                edge = ~shape_differs & (at(lit, L) != at(lit, R))
+                shadows += edge
+                light[pending & edge & ~tir] = j
+            here = pending & (shape_differs | (lines > 0) | tir | (shadows > 0))
+            ok = here & ~tir & (shape_differs | ((lines > 0) & (shadows == 0))
+                                | ((lines == 0) & (shadows == 1)))
+            ok &= (cs_l != STOP) & (cs_r != STOP)
+            kind[ok & shape_differs] = CHAIN_VISIBILITY
+            kind[ok & ~shape_differs & (lines > 0)] = CHAIN_CHECKER
+            kind[ok & ~shape_differs & (shadows == 1)] = CHAIN_SHADOW
+            # total internal reflection switching at the bounce's surface: what the two
+            # chains meet after it differs because of it
+            switch = here & tir
+            kind[switch] = CHAIN_TIR
+            depth[ok | switch] = d
+            pending &= ~here
+        return kind, light, depth
+
+    def moving_edges(self, kind, light, L, R):
+        """Where the edge between the samples of the pairs (L, R) (flat positions, see
+        :func:`flat`) of ``kind`` (and ``light``: a shadow's) moves, the camera still: a
+        visibility edge where either sample sees a moving shape, a checker line on one, a
+        shadow edge whose surface, light or blocker moves, and every edge seen along the
+        specular chain (not told apart: kept). Elsewhere g reads nothing a key moves: the
+        term is zero, and its pair is not formed (a fit of one object's pose, the camera
+        still: the checker lines of a floor that does not move, four fifths of the pairs
+        of benchmarks/edges_bench.py's scene, cost nothing)."""
+        moves = (kind >= CHAIN_VISIBILITY) | self.moves(at(self.shape, L)) \
+            | self.moves(at(self.shape, R))
+        shadow = np.flatnonzero(kind == SHADOW)
+        if len(shadow):
+            blocker = self.blocker(self.lit, self.occluder, light[shadow], L[shadow], R[shadow])
+            moves[shadow] |= self.light_moves[light[shadow]] | self.moves(blocker[:, 0])
+        return moves
+
+    def moves(self, shape):
+        """Whether the shapes ``shape`` (registry ids, numpy; NO_HIT: none) move."""
+        last = len(self.shape_moves) - 1
+        return self.shape_moves[np.where(shape < last, shape, last)]
+
+    def kept(self, kind):
+        """Where a pair of ``kind`` (int8 array; -1: none, or left out) is formed."""
+        if self.formed[1:].all():
+            return kind >= 0
+        keep = np.zeros(kind.shape, bool)
+        for formed in np.flatnonzero(self.formed[1:]):
+            keep |= kind == formed
+        return keep

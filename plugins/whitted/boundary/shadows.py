@@ -1,0 +1,56 @@
+"""Shadow edges of point, spot and directional lights, and the terminator (the package
+docstring, "Pairs"): what blocks a light at the unlit sample (:meth:`Shadows.blocker`) and
+g of a shadow pair (:meth:`Shadows.shadow_crossing`): the blocker's inside function on the
+shadow rays (``visibility.py``'s), or, where the unlit sample has no blocker, N.L (the
+terminator: it has no code of its own but this) or a spot's cos a (``spot.py``). The same
+function serves the shadow edges seen along the specular chain (``chain.py``)."""
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..arrays import jit_array
+from .lattice import NO_HIT, picked
+from .spot import cone_crossing
+from .terms import on_lanes, stacked
+from .visibility import Faces
+
+
+class Shadows:
+    """The shadow edges of :class:`Boundary` (a mixin of Boundary)."""
+
+    @staticmethod
+    def blocker(lit, occluder, index, L, R):
+        """(shape, prim) per pair (numpy) of what blocks light ``index`` (per pair: the first
+        index of ``lit`` and ``occluder``) at the unlit one of L and R (their flat positions,
+        see :func:`flat`; NO_HIT: nothing)."""
+        blocked_l = ~picked(lit, index, L)
+        return np.where(blocked_l[:, None], picked(occluder, index, L),
+                        picked(occluder, index, R))
+
+    def shadow_crossing(self, table, ray, si, light, blocker, which, g, choices, name):
+        """g of the shadow pairs ``which`` (numpy) of light ``light`` (per pair) at the hits
+        ``si`` of the stacked rays ``ray``: the blocking primitive's inside function on the
+        shadow rays; where the unlit sample has no blocker, it faces away from the light
+        (the terminator: N.L) or lies outside a spot's cone (cos a, where its sign differs
+        between L and R). ``choices``: see g_at (theirs: under ``name`` and the light)."""
+        lanes = dr.width(si.p)
+        unblocked = jit_array(mi.Bool, stacked(blocker[:, 0] == NO_HIT, lanes))
+        for j, source in enumerate(self.lights):
+            mask = which & (light == j)
+            if not mask.any():
+                continue
+            wi, _, _ = source.illuminate(si.p)
+            shadow = mi.Ray3f(si.p, wi)
+            facing = dr.dot(self.tracer.facing_normal(si, ray), wi)
+            made = choices.get((name, "shadow", j))
+            facing, crosses = cone_crossing(source, wi, facing, made, len(which), lanes)
+            edge = made[1] if made is not None else \
+                self.crossed_edge(table, shadow, Faces(table, blocker[:, 0], blocker[:, 1]))
+            choices[(name, "shadow", j)] = (crosses, edge)
+            gs = self.inside(table, shadow, Faces(table, stacked(blocker[:, 0], lanes),
+                                                  stacked(blocker[:, 1], lanes)),
+                             on_lanes(edge, lanes))
+            g = dr.select(jit_array(mi.Bool, stacked(mask, lanes)),
+                          dr.select(unblocked, facing, gs), g)
+        return g

@@ -1,0 +1,313 @@
+"""The terms (the package docstring, "Pairs"): for each block of pairs, g evaluated at the
+pairs' lattice points and at two points either side of the crossing, as one stack of rays
+(:meth:`Terms.g_at`; the helpers of stacked arrays), the crossing and its rate, the edge's
+normal, the jump f_L - f_R (:meth:`Terms.jump`), the zero-valued surrogate with the term's
+derivative (:meth:`Terms.surrogates`), the pixels it is shared by (:meth:`Terms.spread`,
+:func:`spread_adjoint`), and the derivative in reverse (:meth:`Terms.backward`) and forward
+mode (:meth:`Terms.forward`), pairs in chunks. Which g a kind of edge has: its own module
+(:meth:`Terms.crossing` picks it at the first hit, ``chain.py``'s along the chain)."""
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..arrays import jit_array
+from .lattice import CHECKER, NO_HIT, POINTS, SHADOW, VISIBILITY, _host, at, flat, span
+
+PAIRS_PER_CHUNK = 1 << 16
+LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
+# ... of a visibility edge of the surface seen: closer, where the rays either side are
+# checked to see L's and R's surfaces. A sphere's color changes like the square root of the
+# distance to its rim: at LIMIT, f_L - f_R was off by about sqrt(LIMIT / k) of its rim's
+# change over a pixel (a radius's weighted sums at k = 8: 1.55 % -> 0.50 %). At least
+# FILM_ULPS of the film position's float32 resolution (k W 2^-24 lattice units).
+RIM_LIMIT, FILM_ULPS = 2e-4, 4
+# the crossing's refinement: g at two points either side of it, this share of its distance
+# to the nearer sample away, at least REFINE_MIN lattice units (float32's g resolves it)
+REFINE, REFINE_MIN = 0.25, 0.005
+
+
+def spread_adjoint(grad_in, pixel, fraction):
+    """Each term's weight: the image's adjoint ``grad_in`` (numpy (H W, 3)) at the pixels
+    it goes to (``pixel``, (n, 3)), by its fraction in each (``fraction``, (n, 3); see
+    :meth:`Boundary.spread`): float32 (n, 3). (By np.take and a sum written out: numpy's
+    indexing of an array of vectors by an index array, and einsum, are each about three
+    times slower.)"""
+    adjoint = np.take(grad_in, pixel, axis=0)
+    return (fraction[:, 0:1] * adjoint[:, 0] + fraction[:, 1:2] * adjoint[:, 1]
+            + fraction[:, 2:3] * adjoint[:, 2]).astype(np.float32)
+
+
+def slope_across(w, at_l, at_r):
+    """g's slope across a pair's axis at its crossing, a fraction ``w`` of the way from L to
+    R: L's and R's centred differences ``at_l``, ``at_r`` (numpy) interpolated. Where one is
+    not finite (a neighbour's ray that sees nothing there, so g is undefined) the other's;
+    where neither is, 0 (the edge taken across the axis)."""
+    ok_l, ok_r = np.isfinite(at_l), np.isfinite(at_r)
+    at_l, at_r = np.where(ok_l, at_l, 0.0), np.where(ok_r, at_r, 0.0)
+    return np.where(ok_l & ok_r, (1.0 - w) * at_l + w * at_r, np.where(ok_l, at_l, at_r))
+
+
+def _evaluated(si):
+    """``si`` with the fields read here evaluated once (each ``.numpy()`` or later kernel
+    would otherwise trace the rays again)."""
+    dr.eval(si.t, si.p, si.n, si.sh_frame.n, si.uv, si.shape, si.prim_index)
+    return si
+
+
+def stacked(values, lanes):
+    """A per-pair numpy array (P pairs) repeated for each point set of stacked rays of
+    ``lanes`` lanes (point set i at lanes i P .. (i + 1) P - 1)."""
+    return np.tile(values, (lanes // len(values),) + (1,) * (values.ndim - 1))
+
+
+def at_l_and_r(value, count):
+    """The values of a stacked array at L and at R (point sets 0 and 1, ``count`` pairs): two
+    arrays of ``count`` lanes, on the device."""
+    lane = dr.arange(mi.UInt32, count)
+    return (dr.gather(type(value), value, lane),
+            dr.gather(type(value), value, lane + dr.opaque(mi.UInt32, count)))
+
+
+def on_lanes(value, lanes):
+    """A per-pair Dr.Jit array (P lanes) repeated for each point set of stacked rays of
+    ``lanes`` lanes (the device's :func:`stacked`)."""
+    count = dr.width(value)
+    return dr.gather(type(value), value, dr.arange(mi.UInt32, lanes) % dr.opaque(mi.UInt32, count))
+
+
+def signs_differ(a, b):
+    """Whether the signs of ``a`` and ``b`` (Floats) differ, as numpy's ``np.sign(a) !=
+    np.sign(b)`` decides it (zero has its own sign; a NaN differs from everything)."""
+    def sign(x):
+        return dr.select(x > 0, 1, dr.select(x < 0, -1, 0))
+
+    return (sign(a) != sign(b)) | dr.isnan(a) | dr.isnan(b)
+
+
+def lanes_of(stack, i, count):
+    """Point set i of a stacked Float (``count`` pairs): its lanes i P .. (i + 1) P - 1. (Its
+    adjoint scatters directly: by default the LLVM backend would expand the stack per thread
+    with its size a constant of the kernel, compiled anew for each count of pairs.)"""
+    lane = dr.arange(mi.UInt32, count) + dr.opaque(mi.UInt32, i * count)
+    return dr.gather(mi.Float, stack, lane, mode=dr.ReduceMode.Direct)
+
+
+class Ends:
+    """The two samples of each pair of a block, L and R: their lattice points (``L``, ``R``:
+    (y, x), numpy), flat positions (``l``, ``r``: see :func:`flat`) and what their first
+    hits are (``shape``, ``prim``, ``t``: (at L, at R) each), read once for the block: g's
+    evaluations, the one-sided colors and the rim correction all read them."""
+
+    def __init__(self, boundary, L, R):
+        self.L, self.R = L, R
+        self.l, self.r = flat(L, boundary.cols), flat(R, boundary.cols)
+        self.shape, self.prim, self.t = (
+            (at(plane, self.l), at(plane, self.r))
+            for plane in (boundary.shape, boundary.prim, boundary.t))
+
+
+class Terms:
+    """The terms of :class:`Boundary`'s pairs, their surrogates and the derivative (a mixin of
+    Boundary: the lattice's keys and colors are its attributes)."""
+
+    def surrogates(self, pairs, lo, hi):
+        """(Color3f surrogate per pair lo .. hi - 1, zero-valued, with the derivative of the
+        pair's term; the pixel each term goes to, numpy)."""
+        terms = self.tracer.scene_terms(self.scene)  # attached: the keys' derivatives
+        sl = slice(lo, hi)
+        count = hi - lo
+        points = {name: tuple(a[sl] for a in pairs[name]) for name in POINTS}
+        L, ends = points["L"], Ends(self, points["L"], points["R"])
+        kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
+        # what picks g (see g_at); its choices made from L's and R's values, kept for the
+        # second pass
+        crossing = (ends, kind, light, pairs["depth"][sl],
+                    (pairs["coord"][sl], pairs["line"][sl]), {})
+        # g at the lattice points (detached): the crossing where it changes sign, linear
+        # between L and R
+        with dr.suspend_grad():
+            _, (gl, gr, gla, gra, glb, grb) = self.g_at(
+                terms, [points[name] for name in POINTS], *crossing)
+        valid = (np.sign(gl) != np.sign(gr)) & (gl != gr) & np.isfinite(gr - gl)
+        w = np.clip(np.where(valid, gl / np.where(valid, gl - gr, 1.0), 0.5), 0.0, 1.0)
+        # refined where g curves between L and R (a checker seen through a glass ball's
+        # rim: its lines compressed, u far from linear): g at two points either side of the
+        # crossing, REFINE of its distance to the nearer sample (at least REFINE_MIN):
+        # their values bracket the crossing again, their difference is g's slope across
+        # it (otherwise L's and R's secant). Their mean's derivative is g's at the crossing
+        # (at its linear estimate where they do not bracket it): the one pass with
+        # derivatives, two rays a pair.
+        eps = np.clip(REFINE * np.minimum(w, 1.0 - w), REFINE_MIN, REFINE)
+        beside = [self.along_axis(L, axis, w + side * eps) for side in (-1.0, 1.0)]
+        g, (gm, gp) = self.g_at(terms, beside, *crossing)
+        g_star = 0.5 * (lanes_of(g, 0, count) + lanes_of(g, 1, count))
+        bracket = valid & (np.sign(gm) != np.sign(gp)) & np.isfinite(gp - gm)
+        along = np.where(bracket, (gp - gm) / (2.0 * eps), gr - gl)  # dg per lattice unit
+        w = np.where(bracket, np.clip(w - eps + 2.0 * eps * gm / np.where(bracket, gm - gp, 1.0),
+                                      0.0, 1.0), w)
+        across = slope_across(w, (gla - glb) / span(points["LA"], points["LB"]),
+                              (gra - grb) / span(points["RA"], points["RB"]))
+        normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
+        df = self.jump(ends, axis, w, kind)
+        # (a pair whose g beside the crossing is undefined, a ray there seeing nothing its
+        # function reads, adds no term: selected out, as a product with 0 would carry NaN in
+        # forward mode)
+        valid &= np.isfinite(gm) & np.isfinite(gp)
+        scale = np.where(valid, normal2 / (self.k ** 2 * np.where(valid, along, 1.0)), 0.0)
+        rate = -(g_star - dr.detach(g_star)) * jit_array(mi.Float, scale.astype(np.float32))
+        rate = dr.select(jit_array(mi.Bool, valid), rate, 0.0)
+        surrogate = mi.Color3f(*(jit_array(mi.Float, df[:, c]) for c in range(3))) * rate
+        rim = self.rim_correction(terms, terms.geometry, kind, axis, ends, w,
+                                  np.where(valid, normal2, 0.0))
+        if rim is not None:
+            surrogate += rim
+        return surrogate, self.spread(L, axis, w, np.abs(across) / np.maximum(np.abs(along), 1e-30))
+
+    def g_at(self, terms, sets, ends, kind, light, depth, line, choices):
+        """g at the point sets ``sets`` (a list of (y, x) lattice coordinates, numpy, one
+        point per pair; ``ends``: the pairs' :class:`Ends`) traced as one stack of rays: (a
+        Float of len(sets) P lanes, point set i at lanes i P .. (i + 1) P - 1, attached as
+        ``terms`` and the camera's keys are; its values as numpy (len(sets), P)).
+        ``choices`` (a dict): the picks made from L's and R's values (which function, which
+        edge of a face) by an earlier call with the same pairs, or empty: made here, from
+        the first two sets (then L and R), and kept in it."""
+        table = terms.geometry
+        ray = self.film_rays(*(np.concatenate([point[i] for point in sets]) for i in range(2)))
+        dr.eval(ray)
+        si = _evaluated(self.hits_at(table, ray, ends, kind))
+        g = self.crossing(table, terms, ray, si, ends, kind, light, line, choices)
+        if (depth >= 0).any():
+            g = self.chain_crossing(table, terms, ray, si, ends, kind, depth, g, light, line,
+                                    choices)
+        # (the choices made here evaluated with g: a later call reads them, not their graph)
+        dr.eval(g, [v for made in choices.values() for v in made if isinstance(v, dr.ArrayBase)])
+        return g, dr.detach(g).numpy().astype(np.float64).reshape(len(sets), len(kind))
+
+    def hits_at(self, table, ray, ends, kind):
+        """The surface interactions of g_at's stacked rays ``ray``, a point set after another,
+        for the pairs (L, R) of ``kind`` (their :class:`Ends`). Where L and R see one face
+        of one shape (every kind but a visibility edge of the first hit, mostly), each ray's
+        hit on that face, solved from the table (``HitTable.known_hits``: no ray tracing; g
+        then is the function of that surface's, smooth where another hides it or where the
+        face ends); elsewhere, and where the ray does not meet that face's plane or sphere,
+        by the ray tracer. A visibility edge's rays have none (its g reads the rays only)."""
+        if not table.supported:  # (coherent: the stack's rays in the lattice's order)
+            return self.tracer.intersect(self.scene, table, ray, coherent=True)
+        lanes = dr.width(ray.d)
+        shape, prim = ends.shape[0], ends.prim[0]
+        needed = kind != VISIBILITY
+        known = needed & (shape == ends.shape[1]) & (prim == ends.prim[1]) & (shape != NO_HIT)
+        pi = table.known_hits(ray, jit_array(mi.UInt32, stacked(np.where(known, shape, NO_HIT),
+                                                                lanes)),
+                              jit_array(mi.UInt32, stacked(prim, lanes)),
+                              jit_array(mi.Float, stacked(ends.t[0], lanes)))
+        traced = jit_array(mi.Bool, stacked(needed, lanes)) & ~pi.is_valid()
+        found = self.scene.ray_intersect_preliminary(ray, coherent=True, active=traced)
+        return table.intersect(self.scene, ray, True, dr.select(traced, found, pi))
+
+    @staticmethod
+    def along_axis(L, axis, offset):
+        """The lattice points (y, x) ``offset`` lattice units from L along each pair's axis."""
+        return (np.where(axis == 1, L[0], L[0] + offset), np.where(axis == 1, L[1] + offset, L[1]))
+
+    def crossing(self, table, terms, ray, si, ends, kind, light, line, choices):
+        """g at the stacked rays ``ray`` (see g_at), hitting ``si`` (a Float, attached)."""
+        left, right = ((ends.shape[i], ends.prim[i], ends.t[i]) for i in (0, 1))
+        choice = self.visibility(table, ray, left, right, choices, "first")
+        if (kind == SHADOW).any():
+            blocker = self.blocker(self.lit, self.occluder, light, ends.l, ends.r)
+            choice = self.shadow_crossing(table, ray, si, light, blocker, kind == SHADOW, choice,
+                                          choices, "first")
+        # checker lines
+        if (kind == CHECKER).any():
+            choice = self.checker_crossing(terms, si, *line, kind == CHECKER, choice,
+                                           choices, "first")
+        return choice
+
+    def jump(self, ends, axis, w, kind):
+        """f_L - f_R across each pair's crossing: the colors of two rays traced just either
+        side of it (LIMIT lattice units, RIM_LIMIT for a visibility edge of the surface seen;
+        within the pair; both sides stacked, one trace),
+        where they see what L and R see (else the colors of L and R themselves)."""
+        count = len(kind)
+        rim = max(RIM_LIMIT, FILM_ULPS * self.k * max(self.width, self.height) * 2.0 ** -24)
+        limit = np.where(kind == VISIBILITY, rim, LIMIT)
+        step = np.minimum(limit, 0.5 * np.minimum(w, 1.0 - w))
+        sides = [self.along_axis(ends.L, axis, w + offset) for offset in (-step, step)]
+        seen = []  # (the shape each side's ray sees, from the trace's own hits)
+
+        def first_hit(si, ray, hit, shadows):
+            seen.append(dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT))
+
+        with dr.suspend_grad():
+            ray = self.film_rays(*(np.concatenate([side[i] for side in sides]) for i in range(2)))
+            color = self.tracer.trace(self.scene, ray, self.terms, first_hit=first_hit).color
+            shape = seen[0]
+            dr.eval(color, shape)
+            colors = _host(color).reshape(2, count, 3)
+            shapes = shape.numpy().reshape(2, count)
+        same = (shapes[0] == ends.shape[0]) & (shapes[1] == ends.shape[1])
+        jump = colors[0] - colors[1]
+        if not same.all():
+            other = ~same
+            jump[other] = self.colors_at(tuple(p[other] for p in ends.L)) \
+                - self.colors_at(tuple(p[other] for p in ends.R))
+        return jump
+
+    def spread(self, L, axis, w, slope):
+        """Where each pair's term goes: (pixel (n, 3), fraction (n, 3)) numpy. The crossing
+        stands for the piece of edge inside its band (the lattice row, or column, of unit
+        width), which runs along the axis over ``slope`` lattice units centred on the crossing:
+        its term is shared by the pixels that piece lies in, by length (at most three)."""
+        k = self.k
+        ly, lx = L[0] - 1, L[1] - 1  # (the image's lattice point: the ring's at -1)
+        band = np.where(axis == 1, ly, lx) // k  # the pixel row (rows) or column (columns)
+        c = np.where(axis == 1, lx, ly) + 0.5 + w  # the crossing along the axis, lattice units
+        lo, hi = c - 0.5 * slope, c + 0.5 * slope
+        first = np.floor(c / k).astype(np.int64) - 1
+        limit = np.where(axis == 1, self.width, self.height)
+        pixels, fractions = [], []
+        for i in range(3):
+            along = first + i
+            overlap = np.clip(np.minimum(hi, (along + 1) * k) - np.maximum(lo, along * k), 0, None)
+            fraction = np.where(slope > 0, overlap / np.where(slope > 0, slope, 1.0),
+                                float(i == 1))
+            inside = (along >= 0) & (along < limit)
+            fractions.append(np.where(inside, fraction, 0.0))
+            along = np.clip(along, 0, limit - 1)
+            pixels.append(np.where(axis == 1, band * self.width + along, along * self.width + band))
+        return np.stack(pixels, -1), np.stack(fractions, -1)
+
+    def backward(self, grad_in):
+        """Propagate the image's adjoint ``grad_in`` (numpy (H W, 3)) through the terms."""
+        self.trace_keys()
+        pairs = self.pairs()
+        total = len(pairs["kind"])
+        for lo in range(0, total, PAIRS_PER_CHUNK):
+            hi = min(lo + PAIRS_PER_CHUNK, total)
+            with dr.resume_grad():
+                surrogate, (pixel, fraction) = self.surrogates(pairs, lo, hi)
+                weight = spread_adjoint(grad_in, pixel, fraction)
+                dr.backward_from(surrogate * mi.Color3f(
+                    *(jit_array(mi.Float, weight[:, c]) for c in range(3))),
+                    flags=dr.ADFlag.Default | dr.ADFlag.AllowNoGrad)
+
+    def forward(self, grads, last):
+        """Add the terms' tangents to ``grads`` (numpy (H W, 3)), the parameters' tangents
+        set; ``last``: clear them after."""
+        self.trace_keys()
+        pairs = self.pairs()
+        total = len(pairs["kind"])
+        for lo in range(0, max(total, 1), PAIRS_PER_CHUNK):
+            hi = min(lo + PAIRS_PER_CHUNK, total)
+            if hi <= lo:
+                break
+            with dr.resume_grad():
+                surrogate, (pixel, fraction) = self.surrogates(pairs, lo, hi)
+                final = last and hi == total
+                dr.forward_to(surrogate, flags=dr.ADFlag.AllowNoGrad | (
+                    dr.ADFlag.Default if final else dr.ADFlag.ClearEdges | dr.ADFlag.ClearInterior))
+                tangent = _host(dr.grad(surrogate))
+            for j in range(3):
+                np.add.at(grads, pixel[:, j], tangent * fraction[:, j:j + 1])

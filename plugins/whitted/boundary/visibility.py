@@ -1,0 +1,156 @@
+"""Visibility edges (the package docstring, "Pairs"): silhouettes of spheres (and
+ellipsoids), outlines of flat meshes and creases; where two samples see different surfaces
+(:meth:`Visibility.surface_differs`), and g of such a pair (:meth:`Visibility.visibility`):
+the primitives' inside functions (:meth:`Visibility.inside`, which the shadow edges' g reads
+too), the edge of a face that flips, the distance to a primitive (a crease's g). The same
+function serves the visibility edges seen along the specular chain (``chain.py``)."""
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..arrays import jit_array
+from ..hits import MESH, SMOOTH, SPHERE
+from .lattice import NO_HIT, STOP, at
+from .terms import at_l_and_r, on_lanes, signs_differ, stacked
+
+COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
+
+
+class Faces:
+    """Primitives (shape, prim), one per lane (numpy ids; NO_HIT: none), on the device once
+    for every function of them that g reads (:meth:`Boundary.inside`, :meth:`Boundary.depth`,
+    :meth:`Boundary.crossed_edge`): whether there is one (``valid``), its kind bits and first
+    row in the geometry table ``table``, and the primitive (UInt32)."""
+
+    def __init__(self, table, shape, prim):
+        ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
+        self.valid, self.kind, self.row = table.entries(ids, jit_array(mi.Bool, shape != NO_HIT))
+        self.prim = jit_array(mi.UInt32, prim.astype(np.uint32))
+
+
+class Visibility:
+    """The visibility edges of :class:`Boundary` (a mixin of Boundary)."""
+
+    def surface_differs(self, L, R, kind_of):
+        """Whether the samples of the pairs (L, R) (numpy flat positions, see :func:`flat`)
+        see different surfaces: another shape (or one a miss), or another face of a flat mesh
+        that is not coplanar with the first."""
+        sl, sr = at(self.shape, L), at(self.shape, R)
+        differs = sl != sr
+        faces = ~differs & (sl != NO_HIT) & (at(self.prim, L) != at(self.prim, R))
+        if not faces.any():
+            return differs
+        kind = kind_of[np.minimum(sl[faces], len(kind_of) - 1)]
+        planar = (kind & MESH != 0) & (kind & SMOOTH == 0)
+        where = np.flatnonzero(faces)[planar]
+        nl, nr = (np.stack([at(c, side[where]) for c in self.normal], -1) for side in (L, R))
+        differs[where[np.linalg.norm(nl - nr, axis=-1) > COPLANAR]] = True
+        return differs
+
+    def visibility(self, table, ray, left, right, choices, name):
+        """g of a visibility edge between the rays of L and R (of the stacked rays ``ray``),
+        which see (shape, prim, t) ``left`` and ``right`` (per pair): N is the nearer; N's
+        inside function where the other ray's line misses N's primitive, else the other's,
+        else (a crease) the difference of the two primitives' distances. ``choices``: see
+        g_at (theirs: under ``name``)."""
+        lanes = dr.width(ray.d)
+        near_is_l = left[2] <= right[2]
+        n_shape, n_prim = (np.where(near_is_l, a, b) for a, b in zip(left[:2], right[:2]))
+        f_shape, f_prim = (np.where(near_is_l, b, a) for a, b in zip(left[:2], right[:2]))
+        made = choices.get((name, "visibility"))
+        if made is None:  # N's function where its sign differs between L and R, else F's
+            near, far = Faces(table, n_shape, n_prim), Faces(table, f_shape, f_prim)
+            n_edge = self.crossed_edge(table, ray, near)
+            f_edge = self.crossed_edge(table, ray, far)
+            with dr.suspend_grad():
+                g_l, g_r = ([self.inside(table, rays, faces, edge)
+                             for faces, edge in ((near, n_edge), (far, f_edge))]
+                            for rays in at_l_and_r(ray, len(f_shape)))
+            use_n = signs_differ(g_l[0], g_r[0])
+            use_f = ~use_n & jit_array(mi.Bool, f_shape < STOP) & signs_differ(g_l[1], g_r[1])
+            choices[(name, "visibility")] = (n_edge, f_edge, use_n, use_f)
+        else:
+            n_edge, f_edge, use_n, use_f = made
+        near, far = (Faces(table, stacked(shape, lanes), stacked(prim, lanes))
+                     for shape, prim in ((n_shape, n_prim), (f_shape, f_prim)))
+        gn = self.inside(table, ray, near, on_lanes(n_edge, lanes))
+        gf = self.inside(table, ray, far, on_lanes(f_edge, lanes))
+        crease = self.depth(table, ray, near) - self.depth(table, ray, far)
+        return dr.select(on_lanes(use_n, lanes), gn,
+                         dr.select(on_lanes(use_f, lanes), gf, crease))
+
+    def inside(self, table, ray, faces, edge=None):
+        """The inside function of each ray's primitive (``faces``: :class:`Faces`): > 0 where
+        the ray's line meets it (see the package docstring). For a triangle, ``edge`` (an
+        Int32 per lane: 0, 1, 2, or -1 for the least of the three) picks the edge function."""
+        valid, kind, row, prim = faces.valid, faces.kind, faces.row, faces.prim
+        out = mi.Float(-1.0)
+        d = dr.normalize(ray.d)
+        if table.has_spheres:
+            sphere = valid & ((kind & SPHERE) != 0)
+            oc, d_local, r = self.sphere_frame(table, row, prim, ray.o, d, sphere)
+            if table.has_ellipsoids:  # (an ellipsoid's direction in object space: not unit)
+                d_local = dr.normalize(d_local)
+            out = dr.select(sphere, r - dr.norm(dr.cross(oc, d_local)), out)
+        if table.has_meshes:
+            mesh = valid & ((kind & MESH) != 0)
+            e = self.edge_functions(table, ray, d, row, prim, mesh)
+            g = dr.minimum(dr.minimum(e[0], e[1]), e[2])
+            if edge is not None:
+                chosen = dr.select(edge == 0, e[0], dr.select(edge == 1, e[1], e[2]))
+                g = dr.select(edge >= 0, chosen, g)
+            out = dr.select(mesh, g, out)
+        return out
+
+    @staticmethod
+    def sphere_frame(table, row, prim, o, d, sphere):
+        """Each lane's ray (o, d) in the frame of its sphere (``HitTable.sphere_frame``):
+        row ``row + prim`` (UInt32 ``prim``: 0 for a Mitsuba sphere, the sphere's index in a
+        sphere set)."""
+        return table.sphere_frame(row + prim, o, d, sphere)
+
+    def edge_functions(self, table, ray, d, row, prim, mesh):
+        """The three normalized edge functions of each lane's face, signed to be > 0 inside."""
+        _, (p0, p1, p2) = table.corners(row, prim, mesh)
+        side = dr.dot(dr.detach(dr.cross(p1 - p0, p2 - p0)), dr.detach(d))
+        sigma = dr.select(side <= 0, 1.0, -1.0)
+        return [sigma * dr.dot(dr.cross(a - ray.o, b - ray.o), d) / dr.norm(b - a)
+                for a, b in ((p0, p1), (p1, p2), (p2, p0))]
+
+    def crossed_edge(self, table, ray, faces):
+        """Per pair (an Int32 of P lanes, on the device): the edge of its face (``faces``:
+        :class:`Faces`, one per pair) whose function changes sign between the rays of L and
+        R (of the stacked rays ``ray``; the first such; -1: none, or not a face)."""
+        count = dr.width(faces.prim)
+        if not table.has_meshes:
+            return dr.full(mi.Int32, -1, count)
+        with dr.suspend_grad():
+            mesh = faces.valid & ((faces.kind & MESH) != 0)
+            sides = []
+            for rays in at_l_and_r(ray, count):  # (L's, then R's)
+                d = dr.normalize(dr.detach(rays.d))
+                rays = mi.Ray3f(dr.detach(rays.o), d)
+                sides.append(self.edge_functions(table, rays, d, faces.row, faces.prim, mesh))
+            edge = mi.Int32(-1)
+            for i in (2, 1, 0):  # (the first edge that flips)
+                edge = dr.select(signs_differ(sides[0][i], sides[1][i]), i, edge)
+            return dr.select(mesh, edge, -1)
+
+    def depth(self, table, ray, faces):
+        """The distance along each ray to its primitive's (``faces``: :class:`Faces`) plane
+        or sphere."""
+        valid, kind, row, prim = faces.valid, faces.kind, faces.row, faces.prim
+        out = mi.Float(0.0)
+        if table.has_spheres:
+            sphere = valid & ((kind & SPHERE) != 0)
+            oc, d, r = self.sphere_frame(table, row, prim, ray.o, ray.d, sphere)
+            a, b = dr.squared_norm(d), dr.dot(oc, d)
+            root = dr.safe_sqrt(dr.square(b) - a * (dr.squared_norm(oc) - dr.square(r)))
+            out = dr.select(sphere, (-b - root) / a, out)
+        if table.has_meshes:
+            mesh = valid & ((kind & MESH) != 0)
+            _, (p0, p1, p2) = table.corners(row, prim, mesh)
+            n = dr.cross(p1 - p0, p2 - p0)
+            out = dr.select(mesh, dr.dot(n, p0 - ray.o) / dr.dot(n, ray.d), out)
+        return out
