@@ -189,3 +189,14 @@ def test_the_package_top_holds_at_most_twelve_modules():
     top = [f for f in os.listdir(os.path.join(REPO, "raymitsuba"))
            if f.endswith(".py") and f not in ("__init__.py", "__main__.py")]
     assert len(top) <= 12, sorted(top)
+
+
+def test_every_package_is_installed():
+    """pyproject.toml lists every package of the code (a wheel leaves out one it does not
+    name, though an editable install finds it)."""
+    import tomllib
+
+    with open(os.path.join(REPO, "pyproject.toml"), "rb") as f:
+        listed = set(tomllib.load(f)["tool"]["setuptools"]["packages"])
+    packages = {name for name, path in MODULES.items() if path.endswith("__init__.py")}
+    assert packages == listed, f"missing {sorted(packages - listed)}, extra {sorted(listed - packages)}"
