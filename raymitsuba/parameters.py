@@ -14,14 +14,16 @@ The keys (:class:`~raymitsuba.format.commands.ParamKey`: ``camera.eye``, ``spher
   analytic sphere's ``to_world``, a mesh's ``vertex_positions``; the camera's ``to_world``
   and field of view) and Mitsuba rebuilds Embree's acceleration structure; the integrator's
   tables follow (they are rebuilt when the shapes' buffers or the spheres' boxes change).
-  How an object is represented never changes (the shapes are translated under the loaded
-  camera, so a plane's rings and the tessellations' segment counts, which follow the
-  camera, stay as loaded): a key that would move a plane or a
-  tessellated object (cylinder, cone, a sphere under a non-uniform scale), or change what
-  kind of shape stands for an object, is refused (:class:`~raymitsuba.format.writeback.
-  ParameterError`) before anything is changed.
+  How an object is represented never changes: the shapes are translated under the loaded
+  camera, and the tessellated objects (cylinders, cones, spheres under non-uniform
+  scales) keep the segment counts they were loaded with (``Options.segments``), so their
+  meshes' vertices and normals move with the keys. A key that would move a plane (whose
+  rings are laid out under the camera) or a sphere of the sphere set, or change what kind
+  of shape stands for an object (an analytic sphere scaled unevenly), is refused
+  (:class:`~raymitsuba.format.writeback.ParameterError`) before anything is changed.
 * **Derivatives** (a key whose gradient is enabled): the Jacobian of every shape's geometry
-  with respect to the key (analytic spheres: centre and radius; meshes: positions) by
+  with respect to the key (analytic spheres: centre and radius; meshes: positions, and a
+  tessellation's vertex normals) by
   central differences of the same host translation (exact for the keys on which the
   geometry depends affinely -- translations, scales, vertices, sphere centres and radii --,
   O(h^2) for rotation angles, h = 1e-2 degree; others h = 1e-2 max(1, |value|)), handed to the integrator as a
@@ -50,7 +52,7 @@ from raymitsuba.format.commands import ParamKey
 from raymitsuba.format.keys import geometry_places
 from raymitsuba.format.parser import parse_text
 from raymitsuba.format.writeback import ParameterError, rewrite_scene, source_lines
-from raymitsuba.translate import camera_geometry, shape_geometry
+from raymitsuba.translate import camera_geometry, shape_geometry, tessellation_segments
 
 CAMERA_FIELDS = ("eye", "lookat", "up", "fov")
 # the keys' fields on which the geometry depends linearly, with the rotations' and scales'
@@ -72,7 +74,10 @@ class GeometryKeys:
         mi = mitsuba()
         self.loaded, self.data = loaded, data
         self.model = loaded.model
-        self.options = loaded.options
+        # The tessellated objects keep their meshes' segment counts as loaded (their vertices
+        # move with the keys; a mesh of other counts would be another shape)
+        self.options = dataclasses.replace(
+            loaded.options, segments=tessellation_segments(self.model, loaded.options))
         self.places = geometry_places(source_lines(data), self.model.dialect)
         self.written = {key: place.values for key, place in self.places.items()}  # as in the file
         self.shapes = shape_geometry(self.model, self.options)  # as Mitsuba has them now
@@ -153,14 +158,15 @@ class GeometryKeys:
                         "spheres as one shape, which does not move; load the scene with "
                         "--sphere-set 0 (sphere_set=0) to fit them)")
                 if old != new:
-                    raise ParameterError(f"it moves `{name}`, a {old[1]} (planes and tessellated "
-                                         "objects cannot move: their meshes are rebuilt from the "
-                                         "camera and the tessellation budget)")
+                    raise ParameterError(f"it moves `{name}`, a {old[1]} (a plane cannot move: "
+                                         "its rings are laid out under the camera, as far as "
+                                         "the horizon)")
                 continue
             if old[0] == "sphere" and np.any(old[3] != new[3]):
                 moved[name] = new
-            elif old[0] == "mesh" and (len(old[1]) != len(new[1]) or np.any(old[1] != new[1])):
-                if len(old[1]) != len(new[1]):
+            elif old[0] == "mesh" and any(len(a) != len(b) or np.any(a != b)
+                                          for a, b in zip(old[1:], new[1:])):
+                if any(len(a) != len(b) for a, b in zip(old[1:], new[1:])):
                     raise ParameterError(f"it changes the mesh `{name}`")
                 moved[name] = new
         return moved
@@ -207,6 +213,8 @@ class GeometryKeys:
                 params[f"{name}.to_world"] = _opaque(mi.Transform4f(mi.ScalarTransform4f(new[3])))
             else:
                 params[f"{name}.vertex_positions"] = jit_array(mi.Float, new[1])
+                if len(new) > 2:  # a tessellation's vertex normals
+                    params[f"{name}.vertex_normals"] = jit_array(mi.Float, new[2])
         if any(not np.array_equal(a, b) for a, b in zip(camera[:3], self.camera[:3])) \
                 or camera[3] != self.camera[3]:
             eye, lookat, up, fov = camera
@@ -232,8 +240,11 @@ class GeometryKeys:
                 if kind == "sphere":
                     spheres.setdefault(name, []).append((self.values[key], jacobian[:3],
                                                          jacobian[3:]))
-                else:
-                    meshes.setdefault(name, []).append((self.values[key], jacobian))
+                else:  # (a tessellation's rows: its positions', then its normals')
+                    count = len(self.shapes[name][1])
+                    meshes.setdefault(name, []).append((self.values[key], jacobian[:count],
+                                                        jacobian[count:] if len(jacobian) > count
+                                                        else None))
         camera = None
         if camera_values:
             eye, lookat, up, _ = self.camera
@@ -313,10 +324,11 @@ def _opaque(value):
 
 
 def _flat(geometry):
-    """A shape's geometry as one float64 vector (sphere: centre, radius; mesh: positions)."""
+    """A shape's geometry as one float64 vector (sphere: centre, radius; mesh: positions,
+    then a tessellation's vertex normals)."""
     if geometry[0] == "sphere":
         return np.concatenate([geometry[1], [geometry[2]]]).astype(np.float64)
-    return np.asarray(geometry[1], np.float64)
+    return np.concatenate(geometry[1:]).astype(np.float64)
 
 
 def _host(value):

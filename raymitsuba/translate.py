@@ -59,6 +59,7 @@ import math
 import operator
 from itertools import chain
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -88,6 +89,10 @@ class Options(RenderOptions):
 
     tessellation_budget: int = TESSELLATION_BUDGET
     tessellation_limit: int = TESSELLATION_LIMIT
+    # The segment counts of the tessellated objects, fixed ((kind, counts) pairs in the order
+    # the translation meets them: :func:`tessellation_segments`), or None: chosen from the
+    # camera and the budget. The geometry keys fix them, so a moving object keeps its mesh.
+    segments: Optional[tuple] = None
 
 
 class GeometryTooLarge(ValueError):
@@ -222,9 +227,10 @@ def shape_geometry(model: Scene, options: Options) -> dict:
     (float64; the centre is the translation of to_world, the radius the length of its first
     column), ``("mesh", positions (3 V,) float32)`` for the flat ``raytriangles`` meshes of
     ``triangle`` lines and MIT 6.837 mesh blocks (their vertex positions, as the mesh holds
-    them), and ``("fixed", kind)`` for the shapes that no key may move (planes, tessellated
-    objects: their meshes are rebuilt from the camera and the tessellation budget, so they
-    cannot move without changing their representation).
+    them), ``("mesh", positions, normals (3 V,) float32)`` for the tessellated objects'
+    smooth meshes (under ``options.segments``, fixed, their vertices move with the objects),
+    and ``("fixed", kind, numbers)`` for the shapes that no key may move (planes: their
+    rings are laid out from the camera; the sphere set).
 
     A transform key moves every object under it on the stack: the model the key's new value
     gives (the text rewritten, parsed again) is translated again and compared shape by shape."""
@@ -236,8 +242,9 @@ def shape_geometry(model: Scene, options: Options) -> dict:
         if shape["type"] == "sphere":
             m = shape["to_world"]
             out[name] = ("sphere", m[:3, 3].copy(), float(np.linalg.norm(m[:3, 0])), m)
-        elif shape["type"] == "raytriangles" and "normals" not in shape:
-            out[name] = ("mesh", np.asarray(shape["positions"], np.float32))
+        elif shape["type"] == "raytriangles":  # (tessellations: with their vertex normals)
+            out[name] = ("mesh", np.asarray(shape["positions"], np.float32)) + \
+                ((np.asarray(shape["normals"], np.float32),) if "normals" in shape else ())
         else:
             out[name] = ("fixed", shape["type"], _fingerprint(shape))
     return out
@@ -291,8 +298,23 @@ def shapes(model, options, surfaces, mi) -> dict:
     if member.any():
         out["spheres"] = sphere_set_shape(objects, member, model, surfaces, mi)
     out |= {f"triangles_{k}": mesh for k, mesh in enumerate(triangles)}
-    meshes = quadric_meshes(objects.tessellated(~objects.exact & ~member), model, options, mi)
+    tessellated = objects.tessellated(~objects.exact & ~member)
+    meshes = quadric_meshes(tessellated, segment_counts(tessellated, model, options), mi)
     return out | {f"quadrics_{k}": mesh for k, mesh in enumerate(meshes)}
+
+
+def tessellation_segments(model: Scene, options: Options) -> tuple:
+    """The segment counts the translation of ``model`` gives its tessellated objects, as
+    ``Options.segments`` takes them: ((kind, counts), ...)."""
+    width, height = model.image_size(options.width, options.height)
+    options = dataclasses.replace(options, width=width, height=height)
+    groups, surfaces = Groups(model.objects), Surfaces(options, HOST)
+    curved = [(g, surfaces.id(model.objects[groups.first[g]]))
+              for g, (kind, *_) in enumerate(groups.keys) if kind in CURVED]
+    objects = CurvedObjects(groups, curved, model)
+    member = set_members(objects, model, options)
+    counts = segment_counts(objects.tessellated(~objects.exact & ~member), model, options)
+    return tuple((kind.value, tuple(c.tolist())) for kind, c in counts.items())
 
 
 class Groups:
@@ -509,14 +531,31 @@ def within_budget(wanted: dict, budget: int, limit: int) -> dict:
     return {kind: scaled_segments(w, fits) for kind, w in wanted.items()}
 
 
-def quadric_meshes(curved, model, options, mi) -> list:
-    """One smooth ``raytriangles`` mesh per surface holding every tessellated object of it.
-    ``curved``: [(surface id, kind, transforms (n, 4, 4), objects)]."""
+def segment_counts(curved, model, options) -> dict:
+    """{kind: the segments around each tessellated object of that kind, in the order of
+    ``curved`` ([(surface id, kind, transforms (n, 4, 4), objects)])}: ``options.segments``
+    where given and they are as many as the objects (else other objects are tessellated: a
+    key changed how one is drawn, which the keys' owner finds from the shapes), else as the
+    silhouette error asks within the budget."""
+    needed = collections.Counter()
+    for _, kind, m, _ in curved:
+        needed[kind] += len(m)
+    fixed = {ObjectKind(kind): np.asarray(counts, np.int64)
+             for kind, counts in options.segments or ()}
+    if options.segments is not None and fixed.keys() == needed.keys() and \
+            all(len(fixed[kind]) == n for kind, n in needed.items()):
+        return fixed
     wanted = {}
     for _, kind, m, _ in curved:
         wanted.setdefault(kind, []).append(wanted_segments(m, kind, model, options))
     wanted = {kind: np.concatenate(w) for kind, w in wanted.items()}
-    counts = within_budget(wanted, options.tessellation_budget, options.tessellation_limit)
+    return within_budget(wanted, options.tessellation_budget, options.tessellation_limit)
+
+
+def quadric_meshes(curved, counts, mi) -> list:
+    """One smooth ``raytriangles`` mesh per surface holding every tessellated object of it.
+    ``curved``: [(surface id, kind, transforms (n, 4, 4), objects)]; ``counts``: their
+    segments, by kind (:func:`segment_counts`)."""
     taken = {kind: 0 for kind in counts}
     batches = {}  # surface id -> [(template, transforms)]
     for surface_id, kind, m, _ in curved:

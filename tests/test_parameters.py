@@ -1,7 +1,7 @@
 """The geometry and camera keys as scene parameters (raymitsuba/parameters.py): moving the
 geometry, refusing what cannot move, and the interior derivative against finite
-differences where no edge moves (a sphere or a triangle filling the frame: every sample
-sees the same surface, so only the shading changes).
+differences where no edge moves (a sphere, a cylinder or a triangle filling the frame:
+every sample sees the same surface, so only the shading changes).
 
 Tolerances: the central difference with h = 1e-3 (angles: 0.05 degree) of a smooth image has a truncation error
 O(h^2) ~ 1e-6 and float32 noise ~1e-7 / 2h per pixel, averaged over ~600 terms; the
@@ -45,6 +45,19 @@ v 0 9 0.5
 f 0 1 2
 end
 """
+CYLINDER = """\
+eye 0.2 0.3 5
+lookat 0 0.1 0
+fov 12
+light 1 1 1 point 2 3 6
+light 0.2 0.2 0.2 ambient
+material 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1
+translate 0.1 0 0
+rotateY 20
+rotateX 80
+scale 2 2 3
+cylinder
+"""
 TRIANGLE = """\
 eye 0.1 0.1 5
 fov 20
@@ -73,6 +86,11 @@ def mi():
     (MIT, "sphere1.radius", (1.0,), 1e-3),
     (TRIANGLE, "triangle1.v1", (0.3, 0.5, -0.4), 1e-3),
     (MESH, "v2.position", (0.3, 0.5, -0.4), 1e-3),
+    # a tessellated cylinder filling the frame: its vertices and normals move with the keys
+    # (larger steps: its derivative is small where its normals turn, float32 noise larger)
+    (CYLINDER, "translate1.offset", (0.3, -0.5, 0.2), 1e-2),
+    (CYLINDER, "scale1.factors", (0.4, 0.1, -0.2), 3e-2),
+    (CYLINDER, "rotateX1.angle", (1.0,), 0.2),
 ])
 def test_interior_derivatives_match_finite_differences(mi, text, key, direction, h):
     reference = finite_difference(mi, text, key, direction, h, spp=1, width=24, height=18)
@@ -107,6 +125,37 @@ def test_keys_that_cannot_move_are_refused(mi):
     sphere.params["scale1.factors"] = mi.Point3f(2, 3, 2)  # would make it an ellipsoid
     with pytest.raises(ParameterError, match="shapes stand for|represented"):
         sphere.params.update()
+
+
+def test_a_tessellated_object_moves_with_the_mesh_it_was_loaded_with(mi):
+    """A cylinder's mesh keeps its segment counts when a key moves it (nearer the camera it
+    would get more): its vertices move with the key, its normals turn with it."""
+    import drjit as dr
+
+    def mesh(scene):
+        params = mi.traverse(scene.scene)
+        return (np.array(params["quadrics_0.vertex_positions"]).reshape(-1, 3),
+                np.array(params["quadrics_0.vertex_normals"]).reshape(-1, 3))
+
+    scene = loaded(mi, CYLINDER, 1)
+    positions, normals = mesh(scene)
+    # (the translate is first on the stack: its offset is in the cylinder's own frame, moved
+    # to the world by the rotations and the scale after it, the linear part of to_world)
+    linear = np.array(scene.model.objects[0].to_world)[:3, :3]
+    scene.params["translate1.offset"] = mi.Point3f(0.1, 0.0, 2.0)
+    scene.params.update()
+    moved, turned = mesh(scene)
+    assert moved.shape == positions.shape  # the mesh it was loaded with, not a new one
+    assert len(mesh(loaded(mi, CYLINDER.replace("translate 0.1 0 0", "translate 0.1 0 2"),
+                           1))[0]) != len(positions)  # (written in the file, it would differ)
+    np.testing.assert_allclose(moved, positions + linear @ [0.0, 0.0, 2.0], atol=1e-5)
+    np.testing.assert_array_equal(turned, normals)
+    scene.params["scale1.factors"] = mi.Point3f(2.0, 3.0, 3.0)
+    scene.params.update()
+    _, turned = mesh(scene)
+    assert np.abs(turned - normals).max() > 0.1
+    np.testing.assert_allclose(np.linalg.norm(turned, axis=1), 1.0, atol=1e-5)
+    assert dr.width(scene.params["scale1.factors"]) == 1
 
 
 def test_a_linear_keys_jacobian_is_kept_while_the_rotations_stay(mi, monkeypatch):

@@ -149,7 +149,8 @@ class GeometryAD:
     """The keys that move shapes and the camera (see the module docstring).
 
     ``spheres``: {shape id: [(key value, J_center (3, m), J_radius (1, m))]};
-    ``meshes``: {shape id: [(key value, J (3 V, m))]} (V the mesh's vertices);
+    ``meshes``: {shape id: [(key value, J_positions (3 V, m), J_normals (3 V, m) or None)]}
+    (V the mesh's vertices; J_normals: a smooth mesh's vertex normals, None for a flat one);
     ``camera``: a CameraAD or None."""
 
     def __init__(self, spheres=None, meshes=None, camera=None):
@@ -204,12 +205,19 @@ class GeometryAD:
                                             dr.replace_grad(table.radius, table.radius + radius)))
         if self.meshes and table.has_meshes:
             offset = dr.zeros(mi.Float, dr.width(table.positions))
+            turned = dr.zeros(mi.Float, dr.width(table.normals)) if table.has_smooth else None
             for name, entries in self.meshes.items():
                 first = rows[name]
-                for value, jacobian, in entries:
-                    moved = linear(jacobian, key_delta(value))
+                for value, j_positions, j_normals in entries:
+                    deltas = key_delta(value)
+                    index = dr.arange(mi.UInt32, len(j_positions)) + 3 * first
+                    moved = linear(j_positions, deltas)
                     if moved is not None:
-                        index = dr.arange(mi.UInt32, len(jacobian)) + 3 * first
                         dr.scatter_add(offset, moved, index)
+                    normals = None if j_normals is None else linear(j_normals, deltas)
+                    if normals is not None and turned is not None:
+                        dr.scatter_add(turned, normals, index)
             out.positions = joint(dr.replace_grad(table.positions, table.positions + offset))
+            if turned is not None:
+                out.normals = joint(dr.replace_grad(table.normals, table.normals + turned))
         return out
