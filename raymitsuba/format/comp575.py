@@ -148,7 +148,8 @@ class Comp575Parser(SceneBuilder):
         self.texture: Optional[Texture] = None
         self.checker: Optional[float] = None
         self.stack: List[Matrix4] = [IDENTITY]  # composites, see the module docstring
-        self.stack_magnitude: List[float] = [1.0]  # largest |entry| of each composite
+        # the largest |entry| of each composite; None until asked for (see _magnitude)
+        self.stack_magnitude: List[Optional[float]] = [1.0]
         self.suggestions: Dict[str, str] = {}
         self.corners: Dict[Vec3, Vec3] = {}  # each distinct triangle corner, once (see _triangle)
         self._ln = 0
@@ -267,7 +268,7 @@ class Comp575Parser(SceneBuilder):
                     r0, r1, r2 = (r0[0], r0[1], r0[2], x), (r1[0], r1[1], r1[2], y), \
                         (r2[0], r2[1], r2[2], z)
                     stack.append((r0, r1, r2, last))
-                    magnitudes.append(max(map(abs, r0 + r1 + r2)))
+                    magnitudes.append(None)  # only a triangle asks for it: _magnitude()
                     continue
             elif key in _TRANSFORMS:
                 if len(stack) == 1:  # the same line on the identity: the same composite
@@ -325,6 +326,15 @@ class Comp575Parser(SceneBuilder):
             self._count_ok(())  # reported; the object is still added, nothing depends on it
         self._add(_OBJECT_KINDS[self._cmd])
 
+    def _magnitude(self) -> float:
+        """The largest |entry| of the current composite (the bulk path's translations leave
+        it to be computed here, when a triangle needs it)."""
+        magnitude = self.stack_magnitude[-1]
+        if magnitude is None:
+            r0, r1, r2, _ = self.stack[-1]
+            magnitude = self.stack_magnitude[-1] = max(map(abs, r0 + r1 + r2))
+        return magnitude
+
     def _triangle_fast(self, values: Tuple[float, ...], ln: int) -> bool:
         """The bulk path's `triangle` (operands ``values``, finite) at line ``ln``, appended as
         :meth:`_triangle` would, and True, when it can report nothing (corners not collinear,
@@ -339,7 +349,7 @@ class Comp575Parser(SceneBuilder):
         if n[0] == 0.0 and n[1] == 0.0 and n[2] == 0.0:
             return False
         if (len(self.stack) > 1
-                and max(map(abs, values)) * self.stack_magnitude[-1] > _SAFE_MAGNITUDE ** 2):
+                and max(map(abs, values)) * self._magnitude() > _SAFE_MAGNITUDE ** 2):
             return False
         self.objects.append(make_object(ObjectKind.TRIANGLE, self.stack[-1],
                                         len(self.materials) - 1, ln, self.texture, None,
@@ -363,7 +373,7 @@ class Comp575Parser(SceneBuilder):
                                  "(it will not be visible)")
         # Only a transform (not the identity at the bottom) can carry corners out of range.
         if (len(self.stack) > 1
-                and max(map(abs, values)) * self.stack_magnitude[-1] > _SAFE_MAGNITUDE ** 2):
+                and max(map(abs, values)) * self._magnitude() > _SAFE_MAGNITUDE ** 2):
             corners = [apply(self.stack[-1], p) for p in (p0, p1, p2)]  # type: ignore[arg-type]
             if not all(math.isfinite(c) for p in corners for c in p):
                 self._error_tok(0, "the current transform carries this triangle "
