@@ -132,3 +132,17 @@ def test_values_are_immutable_hashable_and_compare_by_value(value):
 def test_values_have_no_per_instance_dict(value):
     # slots: a scene of a million lines holds hundreds of thousands of these
     assert not hasattr(value, "__dict__")
+
+
+def test_maker_builds_what_init_builds():
+    """model.maker (the parser's bulk path): the same record as __init__, field for field."""
+    from raymitsuba.model import maker
+
+    m = maker(Material)((0.5, -0.0, 1.0), 0.1, 0.2, 0.3, 4.0, 0.5, 0.6, 1.5, 3, 7, 2)
+    assert m == Material((0.5, -0.0, 1.0), 0.1, 0.2, 0.3, 4.0, 0.5, 0.6, 1.5, 3, 7, 2)
+    assert type(m) is Material and hash(m) == hash(Material((0.5, 0.0, 1.0), 0.1, 0.2, 0.3, 4.0,
+                                                            0.5, 0.6, 1.5, 3, 7, 2))
+    o = maker(SceneObject)(ObjectKind.SPHERE, IDENTITY, 0, 1, None, None, None)
+    assert o == SceneObject(ObjectKind.SPHERE, IDENTITY, 0, 1)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        o.line = 2  # type: ignore[misc]

@@ -15,15 +15,17 @@ where the command's tokens are:
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
+import operator
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from raymitsuba.format import commands as C
 from raymitsuba.format.diagnostics import Diagnostics, fmt
 from raymitsuba.format.geometry import cross, unit
 from raymitsuba.model import (Camera, Light, LightKind, Material, SceneObject, Severity,
-                              TriangleMesh, Vec3)
+                              TriangleMesh, Vec3, maker)
 
 #: A parallel test threshold for unit vectors: |u x d| below this counts as parallel.
 _PARALLEL_EPS = 1e-12
@@ -68,6 +70,28 @@ def _material_plan(command: C.Command):
 #: The plan of each dialect's material command, computed once.
 _MATERIAL_PLANS = {C.MATERIAL_COMMAND[d]: _material_plan(C.command_table(d)[C.MATERIAL_COMMAND[d]])
                    for d in C.DIALECTS}
+
+#: Material and SceneObject built from all their fields, positionally (the bulk path's).
+make_material = maker(Material)
+make_object = maker(SceneObject)
+
+
+def _fast_material_plan(command: C.Command):
+    """What :meth:`SceneBuilder._material_fast` reads from the table: (a getter of the color's
+    values, a getter of Material's seven scalar fields' values in its field order, the index
+    of the ior operand in that order, whether the file holds its reciprocal)."""
+    by_field = {o.field: k for k, o in enumerate(command.operands)}
+    scalars = Material.FIELDS[1:]
+    assert len(scalars) == 7 and tuple(f.name for f in dataclasses.fields(Material)) == (
+        Material.FIELDS + ("index", "line", "column")), "the fast material path needs updating"
+    color = tuple(k - 1 for k in command.positions("color"))
+    ior = command.operand_for("ior")[0]
+    return (operator.itemgetter(*color), operator.itemgetter(*(by_field[f] for f in scalars)),
+            scalars.index("ior"), ior.reciprocal)
+
+
+FAST_MATERIAL_PLANS = {C.MATERIAL_COMMAND[d]: _fast_material_plan(
+    C.command_table(d)[C.MATERIAL_COMMAND[d]]) for d in C.DIALECTS}
 
 
 class SceneBuilder:
@@ -345,6 +369,28 @@ class SceneBuilder:
         ln, column, _ = self._where(0)
         self.materials.append(Material(color, index=len(self.materials),  # type: ignore[arg-type]
                                        line=ln, column=column, **fields))  # type: ignore[arg-type]
+
+    def _material_fast(self, values: Tuple[float, ...], ln: int, column: int) -> bool:
+        """The bulk path's material command (``self._cmd``, every operand already a finite
+        ASCII float, ``values``) at ``ln``:``column``: appended as :meth:`_material` would, and
+        True, when none of its checks can report anything (no operand negative, the ior
+        operand > 0 and the parameter it gives finite); otherwise False, nothing done (the
+        caller runs :meth:`_material`, which reports)."""
+        if min(values) < 0.0:  # a warning (negative color or mix) or an error (n, eta)
+            return False
+        color_of, scalars_of, ior_at, reciprocal = FAST_MATERIAL_PLANS[self._cmd]
+        scalars = scalars_of(values)
+        ior = scalars[ior_at]
+        if not ior > 0.0:
+            return False
+        if reciprocal:
+            ior = 1.0 / ior
+            if ior - ior != 0.0:  # its reciprocal overflows
+                return False
+            scalars = scalars[:ior_at] + (ior,) + scalars[ior_at + 1:]
+        materials = self.materials
+        materials.append(make_material(color_of(values), *scalars, len(materials), ln, column))
+        return True
 
     # ---- the end -----------------------------------------------------------------
 

@@ -19,10 +19,14 @@ pop, and an object simply takes ``stack[-1]``.
 from __future__ import annotations
 
 import math
+from functools import partial
+from itertools import compress, count, repeat
+from operator import and_, eq, is_, itemgetter
 from typing import Dict, List, Optional, Tuple
 
 from raymitsuba.format import commands as C
-from raymitsuba.format.builder import SceneBuilder
+from raymitsuba.format.builder import (FAST_MATERIAL_PLANS as MATERIAL_PLANS,
+                                       SceneBuilder, make_material, make_object)
 from raymitsuba.format.diagnostics import did_you_mean
 from raymitsuba.format.geometry import (apply, cross, magnitude_if_usable, rotated, scaled,
                                  translated)
@@ -36,6 +40,96 @@ _SAFE_MAGNITUDE = 1e150
 _XYZ = ("x", "y", "z")
 _OBJECT_KINDS = {kind.value: kind for kind in ObjectKind}
 _CANONICAL = {name.lower(): name for name in C.COMMAND_NAMES[COMP575]}
+
+#: Lines per chunk of the bulk path (:meth:`Comp575Parser.run`): enough that the work per
+#: chunk vanishes, few enough that the chunk's lists stay small.
+CHUNK = 4096
+#: The most distinct lines whose reading the bulk path remembers (and composites of a
+#: transform of the identity): a bound on the memory a file of distinct lines takes.
+_KNOWN_LINES = 1 << 13
+#: The token count of each fixed-operand command's line, from the table (lower case keys).
+_NTOKS_GET = {name.lower(): 1 + len(command.operands)
+              for name, command in C.COMP575_COMMANDS.items()}.get
+#: The bulk path's object commands carried out in place (planes carry the checker state and
+#: go to their handler).
+_SOLIDS = frozenset({"sphere", "cylinder", "cone"})
+_TRANSFORMS = frozenset({"scale", "rotatex", "rotatey", "rotatez"})
+_HEAD = itemgetter(0)
+_OPERANDS = itemgetter(slice(1, None))
+_FLOATS = partial(map, float)
+#: What :func:`_read_lines` makes of a line without tokens, and of a line that is not simple.
+_BLANK = "blank"
+_EXACT = "exact"
+
+
+def _read_lines(texts: List[str]) -> list:
+    """How the bulk path reads each line of ``texts``: :data:`_BLANK` (no tokens),
+    (command word in lower case, tokens, operands as floats) for a *simple* line, else
+    :data:`_EXACT`.
+
+    A line is simple when it is ASCII (``str.split`` then splits on exactly spaces and tabs,
+    as the exact path), its command word is a fixed-operand command's, its token count that
+    command's (:data:`raymitsuba.format.commands.COMP575_COMMANDS`), and every operand a
+    finite float literal, read by ``float`` (as the exact path reads it: the same bits). A
+    ``#`` comment never passes: ``#`` is in no command word and no ``float`` reads it.
+
+    The work is done for all the lines at once, in C loops (``map`` of ``str.split``, of
+    ``str.lower``, of ``float``); only a bad number sends the lines through a loop of their
+    own, which finds it. (Numbers too large to sum also do: the sum proves them finite.)
+    """
+    split = list(map(str.split, texts))
+    words = list(filter(None, split))
+    keys = list(map(str.lower, map(_HEAD, words)))
+    simple = list(map(eq, map(len, words), map(_NTOKS_GET, keys)))
+    if not all(map(str.isascii, texts)):
+        ascii_ = compress(map(str.isascii, texts), split)
+        simple = list(map(and_, simple, ascii_))
+    try:
+        values = list(map(tuple, map(_FLOATS, map(_OPERANDS, compress(words, simple)))))
+        total = sum(map(sum, values))
+        finite = total - total == 0.0
+    except ValueError:  # a bad number somewhere
+        finite = False
+    if not finite:
+        values = [v for v in map(_finite_operands, compress(words, simple))]
+    read = zip(compress(keys, simple), compress(words, simple), values)
+    if not finite:
+        read = (None if r[2] is None else r for r in read)
+    simple_of = iter(simple)
+    out = []
+    for toks in split:
+        if not toks:
+            out.append(_BLANK)
+        elif next(simple_of):
+            out.append(next(read) or _EXACT)
+        else:
+            out.append(_EXACT)
+    return out
+
+
+def _transform(key: str, composite: Matrix4, v: Tuple[float, ...]):
+    """(the composite, its magnitude) after the transform line ``key`` (scale or rotate,
+    operands ``v``) on ``composite``; None when the handler must report (a zero scale, an
+    unusable composite)."""
+    if key == "scale":
+        if 0.0 in v:
+            return None
+        pushed = scaled(composite, *v)
+    else:
+        pushed = rotated(composite, key[-1], v[0])
+    magnitude = magnitude_if_usable(pushed)
+    return None if magnitude is None else (pushed, magnitude)
+
+
+def _finite_operands(toks: List[str]) -> Optional[Tuple[float, ...]]:
+    """The operands of the tokens ``toks`` of one line as floats if every one is a finite float
+    literal, else None (the exact path reports)."""
+    try:
+        values = tuple(map(float, toks[1:]))
+    except ValueError:
+        return None
+    total = sum(values)
+    return values if total - total == 0.0 else None
 
 
 class Comp575Parser(SceneBuilder):
@@ -54,11 +148,14 @@ class Comp575Parser(SceneBuilder):
         self.texture: Optional[Texture] = None
         self.checker: Optional[float] = None
         self.stack: List[Matrix4] = [IDENTITY]  # composites, see the module docstring
-        self.stack_magnitude: List[float] = [1.0]  # largest |entry| of each composite
+        # the largest |entry| of each composite; None until asked for (see _magnitude)
+        self.stack_magnitude: List[Optional[float]] = [1.0]
         self.suggestions: Dict[str, str] = {}
         self.corners: Dict[Vec3, Vec3] = {}  # each distinct triangle corner, once (see _triangle)
         self._ln = 0
         self._line = ""
+        self._known: Dict[str, object] = {}  # the bulk path's readings, by line text
+        self._from_identity: Dict[str, Tuple[Matrix4, float]] = {}  # transform lines' composites
         handlers = {
             "eye": self._camera_vector, "lookat": self._camera_vector, "up": self._camera_vector,
             "fov": self._fov, "background": self._background,
@@ -75,27 +172,134 @@ class Comp575Parser(SceneBuilder):
 
     # ---- driving -----------------------------------------------------------------
 
+    #: Whether :meth:`run` takes the bulk path for runs of simple lines (the tests compare it
+    #: with the line-by-line path, ``fast_path = False``).
+    fast_path = True
+
     def run(self, lines: List[str]) -> Scene:
-        """The scene of the decoded ``lines`` (see :func:`raymitsuba.format.lexer.decode`)."""
-        handlers = self._handlers
-        for ln, line in enumerate(lines, 1):
-            # lexer.line_tokens(line), inlined: this loop runs once per line of the input
-            ascii_ = line.isascii()
-            toks = line.split() if ascii_ else line_tokens(line)
-            if not toks:
-                continue
-            if "#" in line:
-                toks = before_comment(toks)
-                if not toks:
-                    continue
-            self._ln, self._line, self._toks, self._ascii = ln, line, toks, ascii_
-            entry = handlers.get(toks[0].lower())
-            if entry is None:
-                self._unknown_command()
-            else:
-                self._cmd, handler = entry
-                handler()
+        """The scene of the decoded ``lines`` (see :func:`raymitsuba.format.lexer.decode`).
+
+        The bulk path (:attr:`fast_path`): the lines are read in chunks of :data:`CHUNK`; a
+        chunk's distinct lines not seen before are read at once (:func:`_read_lines`), each
+        line's reading is remembered by its text (:attr:`_known`, a generated scene repeats
+        its ``pop``, ``sphere`` and ``scale`` lines), and :meth:`_carry_out` carries the
+        chunk out. A line that is not *simple* goes to :meth:`_run_line`, the exact path, and
+        so does a simple line of a command whose checks could report something. Both paths
+        give the same scene, the same diagnostics.
+        """
+        if not self.fast_path:
+            for ln, line in enumerate(lines, 1):
+                self._run_line(ln, line)
+            return self._finish()
+        known = self._known
+        for start in range(0, len(lines), CHUNK):
+            chunk = lines[start:start + CHUNK]
+            found = list(map(known.get, chunk))
+            if None in found:
+                fresh = list(dict.fromkeys(compress(chunk, map(is_, found, repeat(None)))))
+                read = dict(zip(fresh, _read_lines(fresh)))
+                if len(known) < _KNOWN_LINES:
+                    known.update(read)
+                found = list(map(read.get, chunk, found))
+            self._carry_out(lines, start + 1, found)
         return self._finish()
+
+    def _run_line(self, ln: int, line: str) -> None:
+        """The exact path: line ``ln`` (text ``line``), whatever it holds."""
+        # lexer.line_tokens(line), inlined: this runs once per line the bulk path leaves
+        ascii_ = line.isascii()
+        toks = line.split() if ascii_ else line_tokens(line)
+        if not toks:
+            return
+        if "#" in line:
+            toks = before_comment(toks)
+            if not toks:
+                return
+        self._ln, self._line, self._toks, self._ascii = ln, line, toks, ascii_
+        entry = self._handlers.get(toks[0].lower())
+        if entry is None:
+            self._unknown_command()
+        else:
+            self._cmd, handler = entry
+            handler()
+
+    def _carry_out(self, lines: List[str], first: int, found: list) -> None:
+        """Carry out lines ``first ...``, read as ``found`` (:func:`_read_lines`).
+
+        A simple line of the hot commands (objects, transforms, ``pop``, ``material``) is
+        carried out here when no check of the command could report anything (no `pop` on an
+        empty stack, no zero scale, no transform that overflows or turns singular, no
+        negative material value, no first object: its position is noted); any other simple
+        line goes to its command's handler with its tokens (the handler reads them again),
+        any other line to :meth:`_run_line`.
+        """
+        handlers = self._handlers
+        stack, magnitudes = self.stack, self.stack_magnitude
+        objects, materials = self.objects, self.materials
+        append = objects.append
+        from_identity = self._from_identity
+        color_of, scalars_of, ior_at, reciprocal = MATERIAL_PLANS["material"]
+        assert not reciprocal  # COMP 575 holds eta itself
+        for ln, read in zip(count(first), found):
+            if read is _BLANK:
+                continue
+            if read is _EXACT:
+                self._run_line(ln, lines[ln - 1])
+                continue
+            key, toks, v = read
+            # the hot commands, when they cannot report anything; else their handler
+            if key == "pop":
+                if len(stack) > 1:
+                    stack.pop()
+                    magnitudes.pop()
+                    continue
+            elif key in _SOLIDS:
+                if self.first_object_at is not None:
+                    append(make_object(_OBJECT_KINDS[key], stack[-1], len(materials) - 1, ln,
+                                       self.texture, None, None))
+                    continue
+            elif key == "translate":
+                # the linear part is unchanged, so is its determinant: only the translation
+                # can turn the composite unusable (magnitude_if_usable, shortened)
+                r0, r1, r2, last = stack[-1]
+                x, y, z = r0[3] + v[0], r1[3] + v[1], r2[3] + v[2]
+                total = x + y + z
+                if total - total == 0.0:
+                    r0, r1, r2 = (r0[0], r0[1], r0[2], x), (r1[0], r1[1], r1[2], y), \
+                        (r2[0], r2[1], r2[2], z)
+                    stack.append((r0, r1, r2, last))
+                    magnitudes.append(None)  # only a triangle asks for it: _magnitude()
+                    continue
+            elif key in _TRANSFORMS:
+                if len(stack) == 1:  # the same line on the identity: the same composite
+                    line = lines[ln - 1]
+                    pushed = from_identity.get(line)
+                    if pushed is None:
+                        pushed = _transform(key, IDENTITY, v)
+                        if pushed is not None and len(from_identity) < _KNOWN_LINES:
+                            from_identity[line] = pushed
+                else:
+                    pushed = _transform(key, stack[-1], v)
+                if pushed is not None:
+                    stack.append(pushed[0])
+                    magnitudes.append(pushed[1])
+                    continue
+            elif key == "material":  # SceneBuilder._material_fast, inlined
+                if min(v) >= 0.0:
+                    scalars = scalars_of(v)
+                    if scalars[ior_at] > 0.0:
+                        line = lines[ln - 1]
+                        column = 1 if line[0] not in " \t" else \
+                            len(line) - len(line.lstrip(" \t")) + 1
+                        materials.append(make_material(color_of(v), *scalars, len(materials),
+                                                       ln, column))
+                        continue
+            elif key == "triangle":
+                if self.first_object_at is not None and self._triangle_fast(v, ln):
+                    continue
+            self._ln, self._line, self._toks, self._ascii = ln, lines[ln - 1], toks, True
+            self._cmd, handler = handlers[key]
+            handler()
 
     def _where(self, index: int) -> Tuple[int, int, str]:
         line = self._line
@@ -122,6 +326,36 @@ class Comp575Parser(SceneBuilder):
             self._count_ok(())  # reported; the object is still added, nothing depends on it
         self._add(_OBJECT_KINDS[self._cmd])
 
+    def _magnitude(self) -> float:
+        """The largest |entry| of the current composite (the bulk path's translations leave
+        it to be computed here, when a triangle needs it)."""
+        magnitude = self.stack_magnitude[-1]
+        if magnitude is None:
+            r0, r1, r2, _ = self.stack[-1]
+            magnitude = self.stack_magnitude[-1] = max(map(abs, r0 + r1 + r2))
+        return magnitude
+
+    def _triangle_fast(self, values: Tuple[float, ...], ln: int) -> bool:
+        """The bulk path's `triangle` (operands ``values``, finite) at line ``ln``, appended as
+        :meth:`_triangle` would, and True, when it can report nothing (corners not collinear,
+        no transform that could carry them out of range); else False, nothing done but the
+        corners' interning (which :meth:`_triangle` repeats alike)."""
+        corner = self.corners.setdefault
+        p0, p1, p2 = values[0:3], values[3:6], values[6:9]
+        p0, p1, p2 = corner(p0, p0), corner(p1, p1), corner(p2, p2)
+        e1 = (p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2])
+        e2 = (p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2])
+        n = cross(e1, e2)
+        if n[0] == 0.0 and n[1] == 0.0 and n[2] == 0.0:
+            return False
+        if (len(self.stack) > 1
+                and max(map(abs, values)) * self._magnitude() > _SAFE_MAGNITUDE ** 2):
+            return False
+        self.objects.append(make_object(ObjectKind.TRIANGLE, self.stack[-1],
+                                        len(self.materials) - 1, ln, self.texture, None,
+                                        (p0, p1, p2)))
+        return True
+
     def _triangle(self) -> None:
         values = self._operands()
         if values is None:
@@ -139,7 +373,7 @@ class Comp575Parser(SceneBuilder):
                                  "(it will not be visible)")
         # Only a transform (not the identity at the bottom) can carry corners out of range.
         if (len(self.stack) > 1
-                and max(map(abs, values)) * self.stack_magnitude[-1] > _SAFE_MAGNITUDE ** 2):
+                and max(map(abs, values)) * self._magnitude() > _SAFE_MAGNITUDE ** 2):
             corners = [apply(self.stack[-1], p) for p in (p0, p1, p2)]  # type: ignore[arg-type]
             if not all(math.isfinite(c) for p in corners for c in p):
                 self._error_tok(0, "the current transform carries this triangle "

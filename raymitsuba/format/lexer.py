@@ -33,6 +33,10 @@ LINE_END = re.compile(r"\r\n|\r|\n")
 #: than tab (line ends are consumed by the line splitting), DEL, and lone surrogates
 #: (which only a Python ``str`` can carry; they are not Unicode text).
 FORBIDDEN = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f\ud800-\udfff]")
+#: The ASCII characters allowed in a scene (tab, the line ends, the printable ones): what
+#: :func:`decode` strips to find a FORBIDDEN one in ASCII text (a C loop, a few times faster
+#: than the regular expression's search).
+_PLAIN_ASCII = bytes([9, 10, 13, *range(32, 127)])
 _TOKEN = re.compile(r"[^ \t]+")
 _COMMENT_6837 = re.compile(r"[#/]")
 
@@ -81,7 +85,11 @@ def decode(data: Union[str, bytes, bytearray, memoryview], report: Reporter) -> 
     if text.startswith("\ufeff"):  # a UTF-8 byte order mark is not content
         text = text[1:]
     lines = split_lines(text)
-    if FORBIDDEN.search(text) is None:
+    if text.isascii():
+        clean = not text.encode("ascii").translate(None, _PLAIN_ASCII)
+    else:
+        clean = FORBIDDEN.search(text) is None
+    if clean:
         return lines  # the common case
     return ["" if _has_bad_character(ln, line, report) else line
             for ln, line in enumerate(lines, 1)]

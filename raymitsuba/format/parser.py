@@ -151,9 +151,11 @@ def _read_scene_bytes(path) -> bytes:
 # COMP 575 -- unless the next token of the file is a number (MIT 6.837 operands may run
 # across lines). A `cylinder` with operands is neither (a later program's command).
 _END = r"(?=[ \t#/]|$)"
-_MIT_MARKERS = re.compile(
-    r"^[ \t]*(surface|triangles|v|f|end|viewport|sphere(?=[ \t]+[^ \t#/]))" + _END,
-    re.MULTILINE | re.IGNORECASE)
+_MIT_WORDS = r"[ \t]*(surface|triangles|v|f|end|viewport|sphere(?=[ \t]+[^ \t#/]))" + _END
+_MIT_MARKERS = re.compile("^" + _MIT_WORDS, re.MULTILINE | re.IGNORECASE)
+#: The same after a line end: a pattern that starts with a literal is searched for that
+#: literal first (about twice as fast over a long text as trying ``^`` everywhere).
+_MIT_MARKERS_BELOW = re.compile("\n" + _MIT_WORDS, re.MULTILINE | re.IGNORECASE)
 _COMP_MARKERS = re.compile(
     r"^[ \t]*(material|plane|cone|triangle|translate|scale|rotate[xyz]|pop|reset|texture|"
     r"checkerboard|cylinder(?=[ \t]*(?:#|$))|sphere(?=[ \t]*(?:[#/]|$))|"
@@ -183,7 +185,7 @@ def _sphere_with_operands_below(text: str, end: int) -> bool:
 def _first_markers(lines: List[str]):
     """(first MIT 6.837 marker, first COMP 575 marker), each (line, column, word) or None."""
     text = "\n".join(lines)
-    mit = _MIT_MARKERS.search(text)
+    mit = _MIT_MARKERS.match(text) or _MIT_MARKERS_BELOW.search(text)
     found_mit = None if mit is None else _marker(text, mit)
     found_comp = None
     for m in _COMP_MARKERS.finditer(text):
