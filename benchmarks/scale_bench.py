@@ -7,7 +7,7 @@
 Three families of generated scenes (the generators are below), each on a ladder of sizes:
 
 * ``spheres``: N spheres (similarity transforms), each with its own ``material``;
-  N = 10, 10^2, 10^3, 10^4;
+  N = 10, 10^2, 10^3, 10^4, 10^5;
 * ``quadrics``: N spheres, cylinders and cones under non-uniform scales and rotations,
   in seven materials, one of them glass (so one object in seven is glass);
   N = 10, 10^2, 10^3, 10^4;
@@ -20,8 +20,8 @@ For each scene, at 512x384 and 1 sample per pixel, it prints (seconds; medians o
 * parse, translate (model to scene dict), load (``mi.load_dict``), cold first render
   (Dr.Jit's kernel cache empty: HOME pointed at a new directory), warm render (the
   median of renders after the first, in the same process);
-* process: the wall time of the whole ``raymitsuba render`` command, after one
-  warm-up run (so with the kernel cache filled, as for a user's second render; the
+* process: the wall time of the whole ``raymitsuba render`` command writing a PNG (as a
+  user would; ``--output exr`` for the EXR), after one warm-up run (so with the kernel cache filled, as for a user's second render; the
   cold figure above includes compiling the kernels), and its peak resident memory (MB);
 * POV-Ray's wall time on the same scene (benchmarks/povray.py's export, 2 threads),
   when ``povray`` is installed, and the ratio process / POV-Ray;
@@ -48,7 +48,7 @@ sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 WIDTH, HEIGHT = 512, 384
-LADDERS = {"spheres": (10, 100, 1000, 10000),
+LADDERS = {"spheres": (10, 100, 1000, 10000, 100000),
            "quadrics": (10, 100, 1000, 10000),
            "triangles": (1000, 10000, 100000, 1000000)}
 QUICK_LADDERS = {"spheres": (10, 100, 1000), "quadrics": (10, 100, 1000),
@@ -230,7 +230,7 @@ def measure_size(family, n, args, workdir):
                           env=dict(os.environ, HOME=cold_home)))
         shutil.rmtree(cold_home, ignore_errors=True)
     row = {key: statistics.median(r[key] for r in runs) for key in runs[0]}
-    render = [sys.executable, "-m", "raymitsuba", "render", path, "-o", path[:-4] + ".exr",
+    render = [sys.executable, "-m", "raymitsuba", "render", path, "-o", f"{path[:-4]}.{args.output}",
               "--width", str(WIDTH), "--height", str(HEIGHT)]
     child({"what": "measure", "cmd": render}, args.timeout)  # warm-up: fills the kernel cache
     process = [child({"what": "measure", "cmd": render}, args.timeout) for _ in range(args.repeat)]
@@ -298,6 +298,9 @@ def main():
     ap.add_argument("--family", choices=list(FAMILIES), action="append",
                     help="only these families (repeatable; default: all three)")
     ap.add_argument("--max-size", type=int, help="skip sizes above this N")
+    ap.add_argument("--min-size", type=int, help="skip sizes below this N")
+    ap.add_argument("--output", choices=("png", "exr"), default="png",
+                    help="the image format the timed `raymitsuba render` writes (default png)")
     ap.add_argument("--repeat", type=int, help="runs per figure, the median is shown (default 3; quick: 1)")
     ap.add_argument("--timeout", type=float, default=600.0,
                     help="seconds one run may take; past it the size and the larger ones are skipped")
@@ -319,7 +322,7 @@ def main():
         for family in args.family or list(FAMILIES):
             rows = {}
             for n in ladders[family]:
-                if args.max_size and n > args.max_size:
+                if (args.max_size and n > args.max_size) or (args.min_size and n < args.min_size):
                     continue
                 print(f"  {family} {n:,} ...", flush=True)
                 try:

@@ -4,6 +4,9 @@ classification into kinds (:meth:`Pairs.classify`: every kind's, at the first hi
 along the chain) and which of them are formed (:meth:`Pairs.kept`,
 :meth:`Pairs.moving_edges`)."""
 
+from itertools import compress, repeat
+from operator import attrgetter, is_not
+
 import drjit as dr
 import numpy as np
 
@@ -22,12 +25,20 @@ def moving_kinds(tracer, scene):
     if tracer.geometry_ad is not None and tracer.geometry_ad.moves():
         return set(range(KINDS))
     kinds = set()
-    if tracer.surfaces is not None and any(  # eta moves what is seen through glass
-            dr.grad_enabled(material.ior) for material in tracer.surfaces.layout.materials):
+    if tracer.surfaces is not None and eta_moves(tracer.surfaces.layout.materials):
+        # eta moves what is seen through glass
         kinds |= {CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW}
     if any(light_moves(emitter) for emitter in scene.emitters()):
         kinds |= {SHADOW, CHAIN_SHADOW}
     return kinds
+
+
+def eta_moves(materials):
+    """Whether a key with its gradient enabled moves some material's eta (read live: a
+    primal render reads the flags under ``dr.resume_grad``). Loops in C: a sphere set's
+    10^5 table rows hold None until their keys are registered."""
+    etas = list(map(attrgetter("ior"), materials))
+    return any(map(dr.grad_enabled, compress(etas, map(is_not, etas, repeat(None)))))
 
 
 def light_moves(emitter):
