@@ -57,7 +57,7 @@ import collections
 import dataclasses
 import math
 import operator
-from itertools import chain
+from itertools import chain, compress, count
 from dataclasses import dataclass
 from typing import Optional
 
@@ -186,6 +186,14 @@ class Surfaces:
         self.dicts: dict = {}
         self.tabled: set = set()  # the materials held by the sphere set's table (no rayphong)
 
+    def of_groups(self, groups) -> list:
+        """The id of each group's surface (:class:`Groups`: one look-up per group, its
+        objects share it): the material's own where the group is untextured."""
+        first = groups.first.tolist()
+        return [f"mat{material}" if texture is None and checker is None  # (untextured())
+                else self.id(groups.objs[first[g]])
+                for g, (_, material, texture, checker) in enumerate(groups.keys)]
+
     def id(self, obj: SceneObject) -> str:
         """The id of the BSDF of ``obj``'s surface (made on first use)."""
         if untextured(obj):
@@ -274,18 +282,18 @@ def shapes(model, options, surfaces, mi) -> dict:
     """Every object's shape: analytic spheres and planes one by one, the rest merged per
     surface (objects grouped by (kind, surface) in one pass, then built in bulk)."""
     groups = Groups(model.objects)
-    out, triangles, curved = {}, [], []
-    for g, (kind, *_) in enumerate(groups.keys):
-        surface_id = surfaces.id(model.objects[groups.first[g]])
-        if kind is ObjectKind.PLANE:
-            ref = {"type": "ref", "id": surface_id}
+    out, triangles = {}, []
+    kinds, ids = groups.kinds(), surfaces.of_groups(groups)
+    is_curved = list(map(CURVED.__contains__, kinds))
+    curved = list(compress(enumerate(ids), is_curved))  # (a scene may hold 10^5 groups)
+    for g in compress(range(len(kinds)), map(operator.not_, is_curved)):
+        if kinds[g] is ObjectKind.PLANE:
+            ref = {"type": "ref", "id": ids[g]}
             for obj in groups.objects(g):
                 out[f"plane_{obj.line}"] = plane(obj, model, mi) | {"bsdf": ref}
-        elif kind is ObjectKind.TRIANGLE:
+        else:  # triangles
             triangles.append(triangle_mesh(groups.objects(g), mi) |
-                             {"bsdf": {"type": "ref", "id": surface_id}})
-        else:
-            curved.append((g, surface_id))
+                             {"bsdf": {"type": "ref", "id": ids[g]}})
     objects = CurvedObjects(groups, curved, model)
     member = set_members(objects, model, options)
     names = ShapeNames()
@@ -309,8 +317,8 @@ def tessellation_segments(model: Scene, options: Options) -> tuple:
     width, height = model.image_size(options.width, options.height)
     options = dataclasses.replace(options, width=width, height=height)
     groups, surfaces = Groups(model.objects), Surfaces(options, HOST)
-    curved = [(g, surfaces.id(model.objects[groups.first[g]]))
-              for g, (kind, *_) in enumerate(groups.keys) if kind in CURVED]
+    curved = [(g, surface_id) for g, (kind, surface_id) in
+              enumerate(zip(groups.kinds(), surfaces.of_groups(groups))) if kind in CURVED]
     objects = CurvedObjects(groups, curved, model)
     member = set_members(objects, model, options)
     counts = segment_counts(objects.tessellated(~objects.exact & ~member), model, options)
@@ -326,16 +334,18 @@ class Groups:
 
     def __init__(self, objs):
         self.objs = objs
-        index = {}
-        self.group = np.fromiter([index.setdefault(key, len(index)) for key in
-                                  map(operator.attrgetter("kind", "material", "texture",
-                                                          "checker"), objs)],
-                                 np.int64, len(objs))
+        keys = list(map(operator.attrgetter("kind", "material", "texture", "checker"), objs))
+        index = dict(zip(dict.fromkeys(keys), count()))  # (C loops: in first use)
+        self.group = np.fromiter(map(index.__getitem__, keys), np.int64, len(objs))
         self.keys = list(index)
         self.first = np.unique(self.group, return_index=True)[1]
         self.order = np.argsort(self.group, kind="stable")
         self.start = np.concatenate([[0], np.cumsum(np.bincount(self.group,
                                                                 minlength=len(self.keys)))])
+
+    def kinds(self) -> list:
+        """Each group's kind of object."""
+        return list(map(operator.itemgetter(0), self.keys))
 
     def objects(self, g) -> list:
         """The objects of group ``g``, in file order."""
@@ -367,9 +377,11 @@ class CurvedObjects:
     def __init__(self, groups: Groups, curved, model):
         self.groups = groups
         self.surface_id = dict(curved)
-        spans = [groups.order[groups.start[g]:groups.start[g + 1]] for g, _ in curved]
-        index = np.concatenate(spans) if spans else np.zeros(0, np.int64)
-        self.objs = [groups.objs[i] for i in index.tolist()]
+        # the objects of the groups of ``curved`` (in group order), as groups.order has them
+        taken = np.zeros(len(groups.keys), bool)
+        taken[[g for g, _ in curved]] = True
+        index = groups.order[taken[groups.group[groups.order]]]
+        self.objs = list(map(groups.objs.__getitem__, index.tolist()))
         self.group = groups.group[index]
         self.to_world = matrices(self.objs)
         self.material = np.fromiter(map(operator.attrgetter("material"), self.objs), np.int64,
@@ -431,7 +443,8 @@ def sphere_set_shape(objects: CurvedObjects, member, model, surfaces, mi) -> dic
         np.flatnonzero(member & ~objects.exact)
     order = np.concatenate([exact, ellipsoids])
     data = sphere_set.pack(np.concatenate([objects.sphere_to_world(exact),
-                                           objects.to_world[ellipsoids]]))
+                                           objects.to_world[ellipsoids]]),
+                           ellipsoid=np.arange(len(order)) >= len(exact))
     material, untextured_member = objects.material[order], objects.untextured[order]
     # a material is used elsewhere by a curved object outside the set, by a textured member,
     # by an object of another kind (a plane, a triangle) or by a mesh

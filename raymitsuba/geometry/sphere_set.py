@@ -67,18 +67,20 @@ def material_column(field: str):
     return slice(0, 3) if field == "color" else 2 + Material.FIELDS.index(field)
 
 
-def pack(to_world: np.ndarray) -> np.ndarray:
+def pack(to_world: np.ndarray, ellipsoid: np.ndarray = None) -> np.ndarray:
     """The set's data (n * FLOATS float32) of the members of to-world transforms
     ``to_world`` (n, 4, 4): an invertible linear part, then a translation. A linear part
     that is a rotation times a positive uniform scale gives a sphere (exactly: its radius
     three times, its rotation); any other, an ellipsoid (its singular values and rotation,
-    see the module docstring)."""
+    see the module docstring). ``ellipsoid``: which are not similarities (n,) bool, where
+    the caller knows (else :func:`is_similarity` finds them)."""
     m = np.asarray(to_world, np.float64).reshape(-1, 4, 4)
     linear = m[:, :3, :3]
     radius = np.linalg.norm(linear[:, :, 0], axis=1)
     scales = np.repeat(radius[:, None], 3, axis=1)
     rotation = linear / radius[:, None, None]
-    ellipsoid = ~is_similarity(linear)
+    if ellipsoid is None:
+        ellipsoid = ~is_similarity(linear)
     if ellipsoid.any():
         u, s, _ = np.linalg.svd(linear[ellipsoid])
         u[np.linalg.det(u) < 0, :, 2] *= -1.0  # a proper rotation: the same surface
