@@ -29,12 +29,17 @@ Memory (``raymitsuba render`` processes, peak resident memory as the kernel acco
 (with ``--bailout 1e-4``: the exact tree at depth 64 grows ~1.2x a generation, which the
 render refuses up front), and with ``--huge`` 16384 x 16384 at 1 spp (minutes).
 
-Anti-aliasing, on the reflective scene and on a generated scene of sub-pixel detail
-(``fine_detail_scene``: a Siemens star and thin wires) at 512 x 384 against a 256-spp
-(16 x 16 grid) render: the share of pixels whose largest channel difference (values
-clamped to [0, 1]) is within 2/255 and 8/255, and the process time relative to a 1-spp render, for uniform
-1, 4 and 16 spp and ``--aa``; POV-Ray's ``+A0.3`` (adaptive, its default depth 3) and its
-uniform 4 spp likewise against its own 16 x 16 supersampled render.
+Anti-aliasing, on the reflective scene, on scenes/aa_showcase.ray (a low camera over a
+rotated, slightly reflective checkerboard to the horizon, mirror spheres and a glass
+sphere, four lights) and on a generated scene of sub-pixel detail (``fine_detail_scene``:
+a Siemens star and thin wires) at 512 x 384 against a 256-spp (16 x 16 grid) render: the
+share of pixels whose largest channel difference (values clamped to [0, 1]) is within
+2/255 and 8/255, and the whole-process time (wall and CPU) relative to a 1-spp render, for
+uniform 1, 4 and 16 spp and ``--aa`` (the variants run round-robin; for ``--aa`` also the
+median of each round's ratio to that round's 1 spp, and one fresh process each with an
+empty kernel cache); POV-Ray's ``+A0.3`` (adaptive, its default depth 3) and its uniform
+4 spp likewise against its own 16 x 16 supersampled render. ``--aa-floor``: also the
+256-spp reference and ``--aa`` against a 1024-spp render.
 
     ./dev bench --only memory,aa     # only these sections (also: table, grad, deep)
     ./dev bench --only batch         # batch rendering on Dask (benchmarks/batch_bench.py)
@@ -284,14 +289,15 @@ def fine_detail_scene(width=512, height=384, spokes=48, wires=12):
 
 
 def aa_section(work, repeats, width=512, height=384, name=SCENES[0], path=None,
-               povray_too=True):
+               povray_too=True, floor=False):
     import numpy as np
 
     from raymitsuba import images
 
     path = path or scene_path(name)
     print(f"\nanti-aliasing on {name} at {width}x{height}, against a 256-spp render "
-          f"(pixels within 2/255 and 8/255; process time, median of {repeats}, relative to 1 spp):")
+          f"(pixels within 2/255 and 8/255; whole `raymitsuba render` processes, median of "
+          f"{repeats}, the variants run round-robin, relative to 1 spp):")
     ref = os.path.join(work, "ref.npy")
     process(render_cmd(path, ref, "--width", width, "--height", height, "--spp", 256))
     reference = np.load(ref)
@@ -314,6 +320,30 @@ def aa_section(work, repeats, width=512, height=384, name=SCENES[0], path=None,
     for label, wall_s, cpu_s, within2, within8 in rows:
         print(f"  raymitsuba {label:12} {within2:6.2f} % {within8:6.2f} %   time x{wall_s / base_wall:5.2f}"
               f" (cpu x{cpu_s / base_cpu:5.2f}; {wall_s:.2f} s)")
+    aa = [label for label, _ in variants].index("--aa")
+    # each round's --aa against the same round's 1 spp, a few seconds apart: the load of a
+    # shared machine moves both alike
+    paired = [(a[0] / b[0], a[1] / b[1]) for a, b in zip(runs[aa], runs[0])]
+    print(f"  --aa / 1 spp, whole process: wall x{median([p[0] for p in paired]):.2f}, cpu "
+          f"x{median([p[1] for p in paired]):.2f} (median of the rounds' ratios; "
+          f"within 2/255 {rows[aa][3]:.2f} %, within 8/255 {rows[aa][4]:.2f} %)")
+    cold = []
+    for label, cmd in (("1 spp", cmds[0]), ("--aa", cmds[aa])):
+        home = tempfile.mkdtemp(prefix="home-", dir=work)  # an empty Dr.Jit kernel cache
+        cold.append(process(cmd, env=dict(os.environ, HOME=home)))
+        shutil.rmtree(home, ignore_errors=True)
+    print(f"  cold kernel cache (one fresh process each): 1 spp {cold[0][0]:.2f} s, --aa "
+          f"{cold[1][0]:.2f} s: x{cold[1][0] / cold[0][0]:.2f} (cpu x{cold[1][1] / cold[0][1]:.2f})")
+    if floor:
+        # the reference's own error: 256 samples against 1024 (a 32 x 32 grid), and --aa's
+        fine = os.path.join(work, "ref1024.npy")
+        process(render_cmd(path, fine, "--width", width, "--height", height, "--spp", 1024,
+                           "--time-limit", 0))
+        finer = np.load(fine)
+        r2, r8 = shares(reference, finer)
+        a2, a8 = shares(np.load(outs[aa]), finer)
+        print(f"  against 1024 spp: the 256-spp reference {r2:.2f} % / {r8:.2f} %, --aa "
+              f"{a2:.2f} % / {a8:.2f} %")
     if not povray_too:
         return
     if not shutil.which("povray"):
@@ -397,6 +427,9 @@ def main():
                          "batch (benchmarks/batch_bench.py)")
     ap.add_argument("--huge", action="store_true",
                     help="memory section: also 16384 x 16384 at 1 spp (minutes)")
+    ap.add_argument("--aa-floor", action="store_true",
+                    help="aa section: also each scene's 256-spp reference and --aa against a "
+                         "1024-spp render (a minute a scene)")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
@@ -417,7 +450,8 @@ def main():
     if "memory" in only:
         memory_section(work, args.huge)
     if "aa" in only:
-        aa_section(work, repeats)
+        aa_section(work, repeats, floor=args.aa_floor)
+        aa_section(work, repeats, name="aa_showcase", povray_too=False, floor=args.aa_floor)
         fine = os.path.join(work, "fine_detail.ray")
         with open(fine, "w") as f:
             f.write(fine_detail_scene())

@@ -24,7 +24,26 @@
    contrast within 2/255 of a 256-sample render (the 8 x 8 and 12 x 12 steps: 94 % to
    98.5 % of the pixels of the fine-detail benchmark; README, "Anti-aliasing").
 
-4. A checkerboard seen directly is averaged over each sample's *footprint* (its share of
+4. Most refined pixels need no fine grid (issue 31: on the benchmark's reflective scene
+   90 % of the pixels given 12 x 12 were already within 2/255 of the reference at their
+   first pass): before its grid, a pixel is traced with a *probe*, a coarser grid, which
+   settles it (its value is the probe's, its grid no finer) where that is evidence
+   enough. A pixel refined for its neighbours (step 2) is probed with ``BETWEEN_PROBE``
+   and settled where the probe's samples agree with one another (within the threshold)
+   and their mean with its first pass's value (within ``SETTLE`` x the threshold): it is
+   flat at the probe's resolution (towards the horizon, where the filtered board is a
+   smooth grey); a wire the probe's samples miss too is the risk, which the probe's
+   spacing (a sixth of a pixel) keeps to sub-pixel detail thinner than 1/6 of a pixel.
+   A pixel whose grid is finer than ``EDGE_PROBE`` x ``EDGE_PROBE`` is probed with that
+   grid and settled where its samples differ (the pixel holds an edge) and yet their
+   mean agrees with the first pass's value within ``SETTLE`` x the threshold: the first
+   pass's filtered footprint already averaged what they differ by (a checker edge seen
+   directly); a point-sampled edge (a silhouette, a shadow, a reflection) makes the
+   mean a mixture the centre's one value does not match, but by chance, which the
+   probe's 16 samples and the tight ``SETTLE`` make rare. The pixels whose grid is the
+   probe's own are traced in the probe's job and always settled by it.
+
+5. A checkerboard seen directly is averaged over each sample's *footprint* (its share of
    the pixel: the whole pixel for the first pass and the corners, 1/n of it for an n x n
    grid), from the camera rays' differentials (``camera.sample``, ``hits.uv_footprint``,
    ``checkerboard.checker_filtered``). Squares smaller than a pixel towards the horizon
@@ -61,6 +80,12 @@ from .chunks import Job
 # (n, contrast): a refined pixel gets the n x n grid of the last entry whose contrast, in
 # multiples of the threshold, its five samples' difference exceeds
 GRIDS = ((2, 0.0), (3, 2.0), (4, 4.0), (6, 12.0), (8, 20.0), (12, 35.0))
+# The probes (step 4 above): the grid's side of a pixel refined for its neighbours, and of a
+# pixel whose own grid is finer; and how close, in multiples of the threshold, a probe's
+# mean must be to the first pass's value to settle a pixel
+BETWEEN_PROBE = 6
+EDGE_PROBE = 4
+SETTLE = 0.25
 BAND = 1024  # rows compared at a time (bounded host memory on huge images)
 
 
@@ -201,13 +226,38 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     refined = (contrasted | around)[band]
     # a pixel refined for its neighbours holds detail its own samples missed: the finest grid
     grid = np.where(around[band], len(GRIDS) - 1, grid_of(spread[band], threshold))
+    grid = np.where(refined, grid, -1).astype(np.int8).ravel()  # (-1: done, or not refined)
+    first = top * width  # the band's first pixel
+    offset = first_row * width  # the first pixel of ``values``
+    sides = np.array([n for n, _ in GRIDS])
     levels = []
+
+    def probe(mask, side, settles):
+        """Trace the pixels of ``mask`` with a side x side grid; those ``settles(agree,
+        flat, own)`` (bool arrays by pixel: the mean agrees with the first pass's value; the
+        samples with one another; the pixel's own grid is the probe's) take the probe's
+        value and are done."""
+        pixels = (np.flatnonzero(mask) + first).astype(np.uint32)
+        if not len(pixels):
+            return
+        estimate.admit(len(pixels), side * side)
+        means, spread = trace_probe(chunker, Job(width, height, side * side, pixels=pixels))
+        agree = np.abs(means - values[pixels - offset]).max(axis=-1) <= SETTLE * threshold
+        done = settles(agree, spread <= threshold, sides[grid[pixels - first]] == side)
+        if done.any():
+            values[pixels[done] - offset] = means[done]
+            levels.append(Level(pixels[done], side))
+            grid[pixels[done] - first] = -1
+
+    around = around[band].ravel()
+    probe(around & (grid >= 0), BETWEEN_PROBE, lambda agree, flat, own: agree & flat)
+    probe(~around & (grid >= 0) & (sides[grid] >= EDGE_PROBE), EDGE_PROBE,
+          lambda agree, flat, own: own | (agree & ~flat))
     for k, (n, _) in enumerate(GRIDS):
-        pixels = (np.flatnonzero(refined & (grid == k)) + top * width).astype(np.uint32)
+        pixels = (np.flatnonzero(grid == k) + first).astype(np.uint32)
         if len(pixels):
             estimate.admit(len(pixels), n * n)
-            trace_level(chunker, Job(width, height, n * n, pixels=pixels), values,
-                        first_row * width)
+            trace_level(chunker, Job(width, height, n * n, pixels=pixels), values, offset)
             levels.append(Level(pixels, n))
     return Plan(chunker.sensor, width, height, spp, threshold, levels)
 
@@ -220,3 +270,20 @@ def trace_level(chunker, job, values, offset=0):
         values[job.pixels[start:start + count] - offset] = dr.ravel(means).numpy().reshape(-1, 3)
 
     chunker.run(job, visit)
+
+
+def trace_probe(chunker, job):
+    """Trace ``job``'s pixels through ``chunker``: ((count, 3) float32, each pixel's
+    box-filtered value; (count,) float32, the largest difference in one channel between
+    two of its samples)."""
+    means = np.empty((job.count, 3), np.float32)
+    spread = np.empty(job.count, np.float32)
+
+    def visit(start, count, color):
+        means[start:start + count] = \
+            dr.ravel(pixel_means(color, count, job.spp)).numpy().reshape(-1, 3)
+        samples = dr.ravel(color).numpy().reshape(count, job.spp, 3)
+        spread[start:start + count] = (samples.max(axis=1) - samples.min(axis=1)).max(axis=-1)
+
+    chunker.run(job, visit)
+    return means, spread
