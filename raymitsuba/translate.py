@@ -294,8 +294,7 @@ def shapes(model, options, surfaces, mi) -> dict:
         else:  # triangles
             triangles.append(triangle_mesh(groups.objects(g), mi) |
                              {"bsdf": {"type": "ref", "id": ids[g]}})
-    objects = CurvedObjects(groups, curved, model)
-    member = set_members(objects, model, options)
+    objects, member = curved_objects(groups, curved, model, options)
     names = ShapeNames()
     single = np.flatnonzero(objects.exact & ~member)
     for i, rows in zip(single.tolist(), objects.sphere_to_world(single).tolist()):
@@ -319,10 +318,17 @@ def tessellation_segments(model: Scene, options: Options) -> tuple:
     groups, surfaces = Groups(model.objects), Surfaces(options, HOST)
     curved = [(g, surface_id) for g, (kind, surface_id) in
               enumerate(zip(groups.kinds(), surfaces.of_groups(groups))) if kind in CURVED]
-    objects = CurvedObjects(groups, curved, model)
-    member = set_members(objects, model, options)
+    objects, member = curved_objects(groups, curved, model, options)
     counts = segment_counts(objects.tessellated(~objects.exact & ~member), model, options)
     return tuple((kind.value, tuple(c.tolist())) for kind, c in counts.items())
+
+
+def curved_objects(groups, curved, model, options):
+    """(The :class:`CurvedObjects` of the groups ``curved`` ([(group, surface id)]), which
+    of them the sphere set holds): what :func:`shapes` and :func:`tessellation_segments`
+    both classify."""
+    objects = CurvedObjects(groups, curved, model)
+    return objects, set_members(objects, model, options)
 
 
 class Groups:
