@@ -270,6 +270,22 @@ class Comp575Parser(SceneBuilder):
                     stack.append((r0, r1, r2, last))
                     magnitudes.append(None)  # only a triangle asks for it: _magnitude()
                     continue
+            elif key == "scale" and len(stack) > 1:
+                # scaled() then magnitude_if_usable(), inlined (the same products, the same
+                # determinant); the magnitude is left to _magnitude(), as a translation's
+                x, y, z = v
+                r0, r1, r2, last = stack[-1]
+                r0 = (r0[0] * x, r0[1] * x, r0[2] * x, r0[3] * x)
+                r1 = (r1[0] * y, r1[1] * y, r1[2] * y, r1[3] * y)
+                r2 = (r2[0] * z, r2[1] * z, r2[2] * z, r2[3] * z)
+                total = sum(r0) + sum(r1) + sum(r2)
+                if x != 0.0 and y != 0.0 and z != 0.0 and total - total == 0.0:
+                    (a, b, c, _), (d, e, f, _), (g, h, i, _) = r0, r1, r2
+                    det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+                    if det != 0.0 and det - det == 0.0:
+                        stack.append((r0, r1, r2, last))
+                        magnitudes.append(None)
+                        continue
             elif key in _TRANSFORMS:
                 if len(stack) == 1:  # the same line on the identity: the same composite
                     line = lines[ln - 1]

@@ -146,6 +146,10 @@ def test_bad_line_in_a_run_of_good_ones(bad, column, message):
     "sphere\nsphere\nplane\ncheckerboard 2\nplane\nsphere\n",
     "triangle 0 0 0 1 1 1 2 2 2\ntriangle 0 0 0 1 0 0 0 1 0\n",  # collinear: a warning
     "scale 1e150 1e150 1e150\ntriangle 1e300 0 0 0 1 0 0 0 1\nsphere\n",
+    # a scale on a pushed composite: its magnitude is found when a triangle asks for it
+    "translate 1 2 3\nscale 1e150 1e150 1e150\ntriangle 1e300 0 0 0 1 0 0 0 1\nsphere\n",
+    "translate 1 2 3\nscale 1e200 1e200 1e200\nscale 1e200 1 1\nscale 2 0 1\nsphere\n",
+    "translate 1 2 3\nscale 1e-200 1e-200 1e-200\nscale 1e-200 1 1\nsphere\n",
     "rotateX 90\nrotatey 90\nROTATEZ 90\nrotateX -0\nsphere\n",
     "eye 0 0 5\neye 0 0 6\nlookat 0 0 0\nfov 45\nfov 200\nbackground -1 0 0\n",
     "texture none\nsphere\nreset 1\npop 2\nmaterial 1 1 1\nlight 1 1 1 point 1 2\n",

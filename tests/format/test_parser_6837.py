@@ -88,6 +88,17 @@ class TestDetection:
         assert detect_dialect(["cylinder 0 0 0 1 2"]) == "comp575"
         assert detect_dialect(["surface 1 1 1 1 1 0 1 0 0 1", "cylinder 1 2 3"]) == "mit6837"
 
+    @pytest.mark.parametrize("text", [
+        "", "sphere", "Surface 1", "x\n  TRIANGLES\n", "fov 1\nF 1 2 3", "v\tx", "vx\nv",
+        "sphere \nsphere  #\nsphere 1", "end#\nEND", "a\n\tViewport 1", "sph\u00e9re\nSURFACE 1",
+        "\u212aend\nsurface", "plane\nsphere /1\nsphere\t2", "v/", "x\nf", "x\nf\n"])
+    def test_the_lower_case_marker_search_finds_what_the_regex_finds(self, text):
+        from raymitsuba.format.parser import _MIT_MARKERS, _MIT_MARKERS_BELOW, first_mit_marker
+        expected = _MIT_MARKERS.match(text) or _MIT_MARKERS_BELOW.search(text)
+        found = first_mit_marker(text)
+        assert (found and (found.start(1), found.group(1))) == \
+            (expected and (expected.start(1), expected.group(1)))
+
     def test_mixed_markers_name_one_line_of_each(self):
         text = "# x\nsurface 1 1 1 1 1 0 1 0 0 1\nsphere 0 0 0 1\n  material 1 1 1 1 1 0 1 0 0 1\n"
         (line, column, message) = error(text, dialect="auto")
