@@ -239,7 +239,7 @@ class GeometryKeys:
             for name, (kind, jacobian) in self._jacobian(key, changed).items():
                 if kind == "sphere":
                     spheres.setdefault(name, []).append((self.values[key], jacobian[:3],
-                                                         jacobian[3:]))
+                                                         jacobian[3:4], jacobian[4:]))
                 else:  # (a tessellation's rows: its positions', then its normals')
                     count = len(self.shapes[name][1])
                     meshes.setdefault(name, []).append((self.values[key], jacobian[:count],
@@ -324,10 +324,12 @@ def _opaque(value):
 
 
 def _flat(geometry):
-    """A shape's geometry as one float64 vector (sphere: centre, radius; mesh: positions,
-    then a tessellation's vertex normals)."""
+    """A shape's geometry as one float64 vector (sphere: centre, radius, then the linear part
+    of its world-to-object transform column by column, which its texture coordinates read;
+    mesh: positions, then a tessellation's vertex normals)."""
     if geometry[0] == "sphere":
-        return np.concatenate([geometry[1], [geometry[2]]]).astype(np.float64)
+        to_object = np.linalg.inv(geometry[3][:3, :3])
+        return np.concatenate([geometry[1], [geometry[2]], to_object.T.ravel()]).astype(np.float64)
     return np.concatenate(geometry[1:]).astype(np.float64)
 
 

@@ -148,7 +148,9 @@ class CameraAD:
 class GeometryAD:
     """The keys that move shapes and the camera (see the module docstring).
 
-    ``spheres``: {shape id: [(key value, J_center (3, m), J_radius (1, m))]};
+    ``spheres``: {shape id: [(key value, J_center (3, m), J_radius (1, m), J_frame (9, m))]}
+    (J_frame: of the linear part of its world-to-object transform, column by column: what
+    turns its texture coordinates);
     ``meshes``: {shape id: [(key value, J_positions (3 V, m), J_normals (3 V, m) or None)]}
     (V the mesh's vertices; J_normals: a smooth mesh's vertex normals, None for a flat one);
     ``camera``: a CameraAD or None."""
@@ -190,9 +192,11 @@ class GeometryAD:
         if self.spheres and table.has_spheres:
             count = dr.width(table.radius)
             center, radius = dr.zeros(mi.Point3f, count), dr.zeros(mi.Float, count)
+            uv = table.to_object is not None  # (the frame is read for uv, see HitTable)
+            frame = dr.zeros(mi.Float, dr.width(table.to_object)) if uv else None
             for name, entries in self.spheres.items():
                 row = mi.UInt32(rows[name])
-                for value, j_center, j_radius in entries:
+                for value, j_center, j_radius, j_frame in entries:
                     deltas = key_delta(value)
                     c = [linear(j_center[i:i + 1], deltas) for i in range(3)]
                     if any(t is not None for t in c):
@@ -201,8 +205,15 @@ class GeometryAD:
                     r = linear(j_radius, deltas)
                     if r is not None:
                         dr.scatter_add(radius, r, row)
-            out.center, out.radius = joint((dr.replace_grad(table.center, table.center + center),
-                                            dr.replace_grad(table.radius, table.radius + radius)))
+                    turned = linear(j_frame, deltas) if uv else None
+                    if turned is not None:  # the row's first three columns (4 x 3 a row)
+                        dr.scatter_add(frame, turned, dr.arange(mi.UInt32, 9) + 12 * rows[name])
+            attached = (dr.replace_grad(table.center, table.center + center),
+                        dr.replace_grad(table.radius, table.radius + radius))
+            if uv:
+                attached += (dr.replace_grad(table.to_object, table.to_object + frame),)
+            out.center, out.radius, *to_object = joint(attached)
+            out.to_object = to_object[0] if uv else table.to_object
         if self.meshes and table.has_meshes:
             offset = dr.zeros(mi.Float, dr.width(table.positions))
             turned = dr.zeros(mi.Float, dr.width(table.normals)) if table.has_smooth else None

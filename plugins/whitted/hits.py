@@ -512,6 +512,8 @@ class HitTable:
         columns = columns or self.to_object_columns(row, sphere)
         local = dr.fma(columns[2], p.z, dr.fma(columns[1], p.y, dr.fma(columns[0], p.x,
                                                                       columns[3])))
+        if attached:  # the texture follows the sphere: local = W (p - c), both attached
+            local = dr.replace_grad(local, _linear(columns, p - center))
         theta = dr.safe_acos(local.z)
         phi = dr.atan2(local.y, local.x)
         phi = dr.select(phi < 0.0, phi + 2.0 * dr.pi, phi)
