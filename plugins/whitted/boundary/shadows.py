@@ -1,7 +1,8 @@
 """Shadow edges of point, spot and directional lights, and the terminator (the package
 docstring, "Pairs"): what blocks a light at the unlit sample (:meth:`Shadows.blocker`) and
 g of a shadow pair (:meth:`Shadows.shadow_crossing`): the blocker's inside function on the
-shadow rays (``visibility.py``'s), or, where the unlit sample has no blocker, N.L (the
+shadow rays (``visibility.py``'s; the rays from where the tracer starts them, off the
+surface), or, where the unlit sample has no blocker, N.L (the
 terminator: it has no code of its own but this) or a spot's cos a (``spot.py``). The same
 function serves the shadow edges seen along the specular chain (``chain.py``)."""
 
@@ -41,7 +42,10 @@ class Shadows:
             if not mask.any():
                 continue
             wi, _, _ = source.illuminate(si.p)
-            shadow = mi.Ray3f(si.p, wi)
+            # from where the tracer's shadow ray starts (off the surface, Tracer.spawn_ray):
+            # g's zero is then the edge the image has (from si.p itself it lay up to 0.03
+            # lattice units off at k = 16, past LIMIT: the jump's two rays missed it)
+            shadow = mi.Ray3f(self.tracer.spawn_ray(si, wi).o, wi)
             facing = dr.dot(self.tracer.facing_normal(si, ray), wi)
             made = choices.get((name, "shadow", j))
             facing, crosses = cone_crossing(source, wi, facing, made, len(which), lanes)
