@@ -55,7 +55,7 @@ fit looks for the right basin by rendering, before any step:
   179 degrees); the steps start from the value of least loss (the start where none is
   lower, the first of equal losses). The window covers a start 33 % below or 50 % above
   the truth; its spacing, 2.7 % of the start (0.031 in eta at 1.15), is finer than the true
-  basin of the checkered wall (about 1.35-1.7 in eta; 27-34 degrees of a 30 degree fov).
+  basin of the checkered wall (about 1.35-1.7 in eta; 26-34 degrees of a 30 degree fov).
   **Cost: 33 primal renders per scanned key** (no derivatives; at 64 x 48, spp 16, about
   1.3 s, as much as three gradient steps), recorded in ``FitResult.scans``, ``.scanned``
   and ``.scan_seconds``. Keys of other fields are not scanned: the shading coefficients'
