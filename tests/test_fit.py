@@ -263,9 +263,9 @@ class TestAutoScan:
     @pytest.mark.parametrize("fov", [33.0, 27.0])
     def test_fov_from_10_percent_off(self, mi, fov):
         """The camera's fov from 33 and 27 degrees (true 30) converges within 0.05 degrees
-        (here 0.015 after 40 steps; at 64 x 48 and 100 steps, 2e-3: README.md); the true basin is about 26-34 degrees,
-        and the loss has others (a local minimum near 39, from a start of 36 the steps
-        alone end at 39.1), which the automatic scan avoids."""
+        (here 0.015 after 40 steps; at 64 x 48 and 100 steps, 2e-3: README.md). The true
+        basin is about 26-34 degrees, and the loss has others (from 36 the steps alone end
+        at 39.1), which the automatic scan avoids."""
         result = checker_fit({"camera.fov": fov}, ["camera.fov"])
         assert [s.key for s in result.scans] == ["camera.fov"]
         assert result.fitted["camera.fov"] == pytest.approx(30.0, abs=0.05)
