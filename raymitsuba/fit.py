@@ -57,10 +57,11 @@ fit looks for the right basin by rendering, before any step:
   the truth; its spacing, 2.7 % of the start (0.031 in eta at 1.15), is finer than the true
   basin of the checkered wall (about 1.35-1.7 in eta; 26-34 degrees of a 30 degree fov).
   **Cost: 33 primal renders per scanned key** (no derivatives; at 64 x 48, spp 16, about
-  1.3 s, as much as three gradient steps), recorded in ``FitResult.scans``, ``.scanned``
-  and ``.scan_seconds``. Keys of other fields are not scanned: the shading coefficients'
-  losses are smooth (kd's a parabola), and positions and directions are vectors;
-  scan them by hand if their loss has many basins.
+  1.3 s, as much as three gradient steps; at 256 x 192, 3.3 s), recorded in
+  ``FitResult.scans``, ``.scanned`` and ``.scan_seconds``. Keys of other fields are not
+  scanned: the shading coefficients' losses are smooth (kd's is a parabola), positions
+  and directions are vectors (from 10 % off a light's position needs no scan: README.md);
+  scan other scalar keys (an angle, a radius) by hand if their loss has many basins.
 * ``scan=[Scan(key, low, high, n), ...]`` (``--scan KEY=LOW:HIGH:N``, repeatable; no
   automatic scan then): **a hand-chosen grid**. The scene is rendered at each value of the
   grids of the scanned scalar keys (their product: every combination), the other keys at
