@@ -1,7 +1,7 @@
 """Recover the refractivity kt and the index of refraction eta of a glass sphere.
 
     ./dev python examples/fit_glass.py [--iters 150] [--size 64] [--lr 0.02]
-    ./dev python examples/fit_glass.py --checker 0.4 [--scan 1.0:2.0:12]
+    ./dev python examples/fit_glass.py --checker 0.4 [--scan auto|none|LOW:HIGH:N]
 
 A glass sphere stands in front of a wall lit by two colored point lights placed
 between the sphere and the wall, so the wall is a smooth color gradient and the
@@ -26,9 +26,11 @@ chain, plugins/whitted/boundary/; docs/gradients.md measures them), but the loss
 of basins: each checker square seen through the ball makes one. Scanned at kt = 0.5 (the
 start) with ``checkerboard 0.4``, 64 x 64, spp 16, the loss has its least value at eta =
 1.5 in a basin from about 1.35 to 1.7, and a barrier at about 1.25: from 1.15 the steps
-alone walk away from it (to 1.13, or 1.06 coarse to fine). So with ``--checker`` the fit
-first scans eta (``--scan LOW:HIGH:N``, default 1.0:2.0:12, spacing 0.09: finer than the
-basin; :class:`raymitsuba.fit.Scan`), starting the steps from the best of the 12 renders.
+alone (``--scan none``) walk away from it (to 1.13, or 1.06 coarse to fine). So
+:func:`raymitsuba.fit.fit` first scans eta by itself (its default, ``scan="auto"``: the
+start and 32 values from 1.15 / 1.5 to 1.15 x 1.5, spacing 0.031, finer than the basin;
+33 primal renders), and the steps start from the best of them. ``--scan LOW:HIGH:N``
+scans a grid of your own instead (:class:`raymitsuba.fit.Scan`).
 
 The glass has no diffuse or specular term (kd = ks = 0) and kr = 0: a highlight
 seen on the inside of the sphere ends where N.L crosses 0, another moving
@@ -67,10 +69,10 @@ def main(argv=None):
     parser.add_argument("--size", type=int, default=64, help="image width and height (default 64)")
     parser.add_argument("--lr", type=float, default=0.02, help="relative learning rate (default 0.02)")
     parser.add_argument("--checker", type=float, default=None, metavar="SIZE",
-                        help="checker the wall with squares of SIZE (then eta is scanned first)")
-    parser.add_argument("--scan", default="1.0:2.0:12", metavar="LOW:HIGH:N",
-                        help="with --checker: the values of eta tried before the steps "
-                             "(default 1.0:2.0:12; 'none': no scan)")
+                        help="checker the wall with squares of SIZE")
+    parser.add_argument("--scan", default="auto", metavar="auto|none|LOW:HIGH:N",
+                        help="the values of eta tried before the steps: 'auto' (default: "
+                             "fit's automatic scan), 'none' (no scan), or a grid LOW:HIGH:N")
     parser.add_argument("--spp", type=int, default=None, help="samples per pixel (default 1; "
                         "with --checker 16, a 4 x 4 lattice: the checker edges' derivatives)")
     parser.add_argument("--quiet", action="store_true", help="no per-iteration progress")
@@ -82,8 +84,7 @@ def main(argv=None):
     scene = TRUE_SCENE if args.checker is None else TRUE_SCENE.replace(
         "translate 0 0 -3\n", f"translate 0 0 -3\ncheckerboard {args.checker:g}\n")
     spp = args.spp or (1 if args.checker is None else 16)
-    scan = [] if args.checker is None or args.scan == "none" else \
-        [Scan.parse("mat2.ior=" + args.scan)]
+    scan = args.scan if args.scan in ("auto", "none") else [Scan.parse("mat2.ior=" + args.scan)]
     truth = raymitsuba.load(scene, width=args.size, height=args.size, spp=spp)
     target = raymitsuba.render(truth).numpy()
     true_values = model_values(truth.model, KEYS)
@@ -102,8 +103,8 @@ def main(argv=None):
     seconds = time.perf_counter() - started
     if result.scanned:
         best, loss = min(result.scanned, key=lambda item: item[1])
-        print(f"scanned eta over {len(result.scanned)} values: best {best['mat2.ior']:.4f} "
-              f"(loss {loss:.3e}); the steps started there")
+        print(f"scanned eta over {len(result.scanned)} values ({result.scan_seconds:.1f} s): "
+              f"best {best['mat2.ior']:.4f} (loss {loss:.3e}); the steps started there")
 
     print(f"\n{'parameter':20s} {'true':>8s} {'start':>8s} {'fitted':>8s}")
     for key in KEYS:

@@ -37,15 +37,41 @@ Note that some parameters are only jointly determined by an image (a material's
 color times its diffuse mix times the light's color): fitting all of them lowers
 the loss but need not recover each one; pick ``keys`` accordingly.
 
-**A scan before the steps** (``scan``, :class:`Scan`; ``--scan KEY=LOW:HIGH:N``): a
-gradient only sees the loss near the current values, and some losses have many basins --
-eta behind glass in front of a checkerboard is one: each checker square seen through the
-ball makes its own, and from eta = 1.15 the steps walk away from 1.5 (a barrier at about
-1.25). A scan renders the scene at each value of a grid of the scanned scalar keys (their
-product: every combination), the other keys at their start, and the steps start from the
-combination of least loss. The grid's spacing must be finer than the true basin's width
-(for the glass ball, about 0.3 in eta); the steps then place the key exactly. The scan
-costs one primal render per combination (no derivatives); at most :data:`MAX_SCAN`.
+**Scans before the steps** (``scan``). A gradient only sees the loss near the current
+values, and some losses have many basins -- eta behind glass in front of a checkerboard
+is one: each checker square seen through the ball makes its own, and from eta = 1.15
+(true 1.5) the steps alone walk away from 1.5 (a barrier at about 1.25; they end at 1.13).
+Blurring or block-averaging the images (``levels``) does not remove those basins (the
+barrier stays where it is at every blur, measured up to a Gaussian of 8 pixels), so the
+fit looks for the right basin by rendering, before any step:
+
+* ``scan="auto"`` (the default; ``--scan auto``): **an automatic scan** of each scalar key
+  among ``keys`` whose field is in :data:`AUTO_SCAN` -- ``ior`` (eta bends the refracted
+  rays: *what* the glass shows moves) and ``fov`` (zooms everything the camera sees) --
+  whatever its scene. Each such key is scanned alone, in the order of ``keys``, the others
+  at their current values (an earlier scanned key at its best): its start value and then
+  :data:`AUTO_SCAN_COUNT` (32) evenly spaced values from start / :data:`AUTO_SCAN_RATIO` to
+  start x AUTO_SCAN_RATIO (1.5), cut to the key's valid range (eta >= 1e-3, 0 < fov <=
+  179 degrees); the steps start from the value of least loss (the start where none is
+  lower, the first of equal losses). The window covers a start 33 % below or 50 % above
+  the truth; its spacing, 2.7 % of the start (0.031 in eta at 1.15), is finer than the true
+  basin of the checkered wall (about 1.35-1.7 in eta; 26-34 degrees of a 30 degree fov).
+  **Cost: 33 primal renders per scanned key** (no derivatives; at 64 x 48, spp 16, about
+  1.3 s, as much as three gradient steps; at 256 x 192, 3.3 s), recorded in
+  ``FitResult.scans``, ``.scanned`` and ``.scan_seconds``. Keys of other fields are not
+  scanned: the shading coefficients' losses are smooth (kd's is a parabola), positions
+  and directions are vectors (from 10 % off a light's position needs no scan: README.md);
+  scan other scalar keys (an angle, a radius) by hand if their loss has many basins.
+* ``scan=[Scan(key, low, high, n), ...]`` (``--scan KEY=LOW:HIGH:N``, repeatable; no
+  automatic scan then): **a hand-chosen grid**. The scene is rendered at each value of the
+  grids of the scanned scalar keys (their product: every combination), the other keys at
+  their start, and the steps start from the combination of least loss. The grid's
+  spacing must be finer than the true basin's width; the steps then place the key
+  exactly. One primal render per combination; at most :data:`MAX_SCAN`.
+* ``scan=()`` (``--scan none``): no scan.
+
+What the three fits of issue 30 measure with the defaults (README.md, "Fitting: scans and
+results", has the table and the commands: ``benchmarks/fit_auto.py``).
 
 **Writing back**: :func:`rewrite_scene` (from :mod:`raymitsuba.format.writeback`, which
 says how) puts the fitted numbers into the .RAY text, every other byte unchanged.
@@ -68,7 +94,8 @@ from raymitsuba.format.writeback import (MATERIAL_FIELDS, ParameterError, Value,
                                          parse_key, rewrite_scene, writable_keys)
 from raymitsuba.model import Scene
 
-__all__ = ["FitError", "FitResult", "MAX_SCAN", "Scan", "Step", "LOWER_BOUNDS", "MATERIAL_FIELDS", "Value",
+__all__ = ["AUTO_SCAN", "AUTO_SCAN_COUNT", "AUTO_SCAN_RATIO", "FitError", "FitResult",
+           "MAX_SCAN", "Scan", "auto_scans", "Step", "LOWER_BOUNDS", "MATERIAL_FIELDS", "Value",
            "clamp_value", "coarse", "default_keys", "downsampled", "level_of", "field_of", "fit", "model_values", "parameter_error",
            "rewrite_scene", "select_keys", "set_values", "to_python", "writable_keys",
            "write_scene"]
@@ -85,6 +112,16 @@ LOWER_BOUNDS: Dict[str, Optional[float]] = {
 
 #: The most combinations a scan may render (each is one render of the scene).
 MAX_SCAN = 10_000
+
+#: The fields whose keys ``scan="auto"`` scans (module docstring), and each one's valid
+#: range for the scan: (lowest, highest) value tried.
+AUTO_SCAN: Dict[str, tuple] = {"ior": (1e-3, math.inf), "fov": (1e-3, 179.0)}
+
+#: The automatic scan's window: start / ratio to start x ratio.
+AUTO_SCAN_RATIO = 1.5
+
+#: The automatic scan's evenly spaced values in that window (the start is rendered too).
+AUTO_SCAN_COUNT = 32
 
 #: What a request the fit cannot carry out raises (an unknown key, a wrong target size, a
 #: key with no line to write back to...): one class with the write-back's errors.
@@ -234,8 +271,11 @@ class FitResult:
     fitted_image: Optional[np.ndarray] = None
     iterations: int = 0
     seconds: float = 0.0
-    # the scan's combinations ({key: value}) and their losses, in order (empty: no scan)
+    # the scan's combinations ({key: value}) and their losses, in order (empty: no scan;
+    # an automatic scan: each key's start, then its grid, key after key)
     scanned: List[tuple] = field(default_factory=list)
+    scans: List["Scan"] = field(default_factory=list)  # the scans that ran (auto or given)
+    scan_seconds: float = 0.0  # their renders' time (included in ``seconds``)
 
     @property
     def losses(self) -> List[float]:
@@ -246,7 +286,8 @@ class FitResult:
 def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
         lr: float = 0.02, spp: Optional[int] = None,
         callback: Optional[Callable[[Step], Optional[bool]]] = None,
-        final_lr: float = 0.1, levels: int = 1, scan: Sequence[Scan] = ()) -> FitResult:
+        final_lr: float = 0.1, levels: int = 1,
+        scan: Union[str, Sequence[Scan], None] = "auto") -> FitResult:
     """Fit the parameters ``keys`` of ``loaded`` (see :func:`raymitsuba.load`) to the linear
     (H, W, 3) image ``target`` by Adam on the mean squared error; ``iters`` steps of
     learning rate ``lr`` (relative, see the module docstring), decaying geometrically to
@@ -259,8 +300,10 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     render and the target averaged over blocks of 2^(levels - 1) pixels, then 2^(levels -
     2)..., the last share at full resolution.
 
-    ``scan``: grids of scalar keys among ``keys`` tried first (:class:`Scan`); the steps
-    start from their best combination."""
+    ``scan``: ``"auto"`` (default): the automatic scan of the keys whose field is in
+    :data:`AUTO_SCAN` (eta, the fov); a sequence of :class:`Scan`: grids of scalar keys
+    among ``keys`` tried first, the steps starting from their best combination; ``()``,
+    None or ``"none"``: no scan (see the module docstring)."""
     import drjit as dr
 
     from raymitsuba.api import render
@@ -288,10 +331,23 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     spp = int(spp or loaded.options.spp)
     from raymitsuba.plugins.whitted.arrays import jit_tensor
     target_tensor = jit_tensor(target)  # (aligned: the loss's kernels the same in every fit)
-    grids = scan_grids(scan, keys, params)
+    if isinstance(scan, str) and scan not in ("auto", "none"):
+        raise FitError(f"scan={scan!r}: use 'auto', 'none' or a list of Scan")
+    automatic = scan == "auto"
+    scans = auto_scans(keys, params) if automatic else \
+        [] if scan is None or scan == "none" else list(scan)
+    grids = scan_grids(scans, keys, params, product=not automatic)
 
     started = time.perf_counter()
-    scanned = run_scan(loaded, grids, target, spp) if grids else []
+    scanned = []
+    if automatic:  # each key alone, its start first
+        for item in scans:
+            start_value = clamp_value(item.key, to_python(params[item.key]))
+            scanned += run_scan(loaded, {item.key: [start_value] + grids[item.key]}, target,
+                                spp)
+    elif grids:
+        scanned = run_scan(loaded, grids, target, spp)
+    scan_seconds = time.perf_counter() - started
     optimizer = mi.ad.Adam(lr=lr)
     start, scales = {}, {}
     for key in keys:
@@ -305,7 +361,8 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     fitted = loaded.traverse()
     fitted.keep([re.escape(key) + "$" for key in keys])
 
-    result = FitResult(keys=keys, start=start, fitted=dict(start), scanned=scanned)
+    result = FitResult(keys=keys, start=start, fitted=dict(start), scanned=scanned,
+                       scans=scans, scan_seconds=scan_seconds)
     for iteration in range(iters):
         image = render(loaded, spp=spp, params=fitted)
         factor = 2 ** level_of(iteration, iters, levels)
@@ -352,9 +409,31 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     return result
 
 
-def scan_grids(scan: Sequence[Scan], keys: List[str], params) -> Dict[str, List[float]]:
+def auto_scans(keys: Sequence[str], params) -> List[Scan]:
+    """The automatic scans of ``keys`` at the values ``params`` holds (module docstring):
+    for each scalar key whose field is in :data:`AUTO_SCAN`, in order, AUTO_SCAN_COUNT
+    values from start / AUTO_SCAN_RATIO to start x AUTO_SCAN_RATIO, cut to the field's
+    range (none where the start is not positive or the window is empty)."""
+    out = []
+    for key in keys:
+        window = AUTO_SCAN.get(field_of(key))
+        if window is None:
+            continue
+        value = to_python(params[key])
+        if not isinstance(value, float) or not (value > 0 and math.isfinite(value)):
+            continue
+        low = max(value / AUTO_SCAN_RATIO, window[0])
+        high = min(value * AUTO_SCAN_RATIO, window[1])
+        if low < high:
+            out.append(Scan(key, low, high, AUTO_SCAN_COUNT))
+    return out
+
+
+def scan_grids(scan: Sequence[Scan], keys: List[str], params,
+               product: bool = True) -> Dict[str, List[float]]:
     """{key: its values} of the scans, checked: scalar keys among ``keys``, each once, at
-    most MAX_SCAN combinations in all (FitError otherwise, before anything is rendered)."""
+    most MAX_SCAN combinations in all (``product`` False: the keys are scanned one by one,
+    so renders, not combinations) (FitError otherwise, before anything is rendered)."""
     grids: Dict[str, List[float]] = {}
     for item in scan:
         if item.key not in keys:
@@ -365,7 +444,7 @@ def scan_grids(scan: Sequence[Scan], keys: List[str], params) -> Dict[str, List[
         if not isinstance(to_python(params[item.key]), float):
             raise FitError(f"`{item.key}` is not a number: only scalar keys can be scanned")
         grids[item.key] = [clamp_value(item.key, v) for v in item.values()]
-    combinations = math.prod(len(v) for v in grids.values())
+    combinations = (math.prod if product else sum)(len(v) for v in grids.values())
     if combinations > MAX_SCAN:
         raise FitError(f"the scan has {combinations} combinations, more than {MAX_SCAN} "
                        f"(one render each)")

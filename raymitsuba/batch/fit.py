@@ -29,7 +29,8 @@ from raymitsuba.model import Scene
 class FitTask:
     """One fit for a worker: the scene (parsed, and its bytes, which the fitted text keeps
     but for the fitted numbers), its textures' bytes, the target (linear float32 (H, W,
-    3)), the parameter keys, Adam's ``iters`` and ``lr``, and render options by name."""
+    3)), the parameter keys, Adam's ``iters`` and ``lr``, render options by name, and
+    ``scan``: ``"auto"`` or ``"none"`` (:func:`raymitsuba.fit.fit`)."""
 
     model: Scene
     data: bytes
@@ -39,6 +40,7 @@ class FitTask:
     lr: float
     options: dict = field(default_factory=dict)
     textures: Dict[str, bytes] = field(default_factory=dict)
+    scan: str = "auto"
 
 
 def fit(task: FitTask) -> bytes:
@@ -52,7 +54,8 @@ def fit(task: FitTask) -> bytes:
     loaded = api.load(with_local_textures(task.model, task.textures), width=width,
                       height=height, **task.options)
     try:
-        result = fitting.fit(loaded, task.target, task.keys, iters=task.iters, lr=task.lr)
+        result = fitting.fit(loaded, task.target, task.keys, iters=task.iters, lr=task.lr,
+                               scan=task.scan)
     except fitting.FitError as e:
         raise ItemError(str(e)) from None
     return fitting.rewrite_scene(task.data, task.model, result.fitted)
@@ -64,11 +67,12 @@ def fit_many(scenes: Sequence[str], targets: Sequence[str], outputs: Sequence[st
              scheduler: Optional[str] = None, skip_existing: bool = False,
              fail_fast: bool = False, manifest: Optional[str] = "", dialect: str = "auto",
              report: Optional[Callable] = None, progress: Optional[Callable] = None,
-             **options) -> List[Item]:
+             scan: str = "auto", **options) -> List[Item]:
     """Fit each scene (a path) to its target image (a path) and write the fitted scene to
     its output: one :class:`~raymitsuba.batch.render.Item` per scene, in order. ``keys``:
     the parameters (default: as ``raymitsuba fit`` chooses); ``options``: ``spp``,
-    ``max_depth``, ``aa``, ``memory_budget``, ``srgb`` (the target's decoding too); the
+    ``max_depth``, ``aa``, ``memory_budget``, ``srgb`` (the target's decoding too);
+    ``scan``: ``"auto"`` (default) or ``"none"``, as :func:`raymitsuba.fit.fit` takes it; the
     rest as :func:`raymitsuba.batch.render_many` takes them."""
     from raymitsuba import fit as fitting
     from raymitsuba import images
@@ -98,7 +102,7 @@ def fit_many(scenes: Sequence[str], targets: Sequence[str], outputs: Sequence[st
             item.status, item.error = "error", f"{item.scene}: {e}"
             continue
         tasks.append(FitTask(model, data, image, selected, iters, lr, dict(options),
-                             textures_of(model)))
+                             textures_of(model), scan))
         owners.append(i)
     for item in items:
         if item.status != "pending":

@@ -65,11 +65,14 @@ def show(value) -> str:
                    "the first comparing images averaged over 2^(levels-1) pixel blocks (so that "
                    "an object far from its place in the target still gets a gradient), the "
                    "last at full resolution.")
-@click.option("--scan", "scans", multiple=True, metavar="KEY=LOW:HIGH:N",
-              help="Before the steps (one scene), render N evenly spaced values of the scalar "
-                   "key KEY from LOW to HIGH (repeatable: every combination) and start from "
-                   "the best: for losses with many basins, such as eta behind glass in front "
-                   "of a checkerboard (e.g. mat2.ior=1.0:2.0:12).")
+@click.option("--scan", "scans", multiple=True, metavar="auto|none|KEY=LOW:HIGH:N",
+              help="Scans before the steps, for losses with many basins (such as eta behind "
+                   "glass in front of a checkerboard). 'auto' (the default): each fitted ior "
+                   "and fov alone over start/1.5 .. start*1.5 (33 renders each, no "
+                   "derivatives), starting from the best. 'none': no scan. KEY=LOW:HIGH:N "
+                   "(one scene; repeatable: every combination; no automatic scan then): N "
+                   "evenly spaced values of the scalar key KEY from LOW to HIGH, e.g. "
+                   "mat2.ior=1.0:2.0:12.")
 @render_options("spp", "max_depth", "aa", "memory_budget", "sphere_set")
 @click.option("--truth", default=None, type=click.Path(dir_okay=False),
               help="The true scene (same structure): also print each parameter's error.")
@@ -91,14 +94,15 @@ def fit(scenes, target, output, keys, iters, lr, levels, scans, truth, plot, qui
     each on Dask workers (as ``raymitsuba render SCENE...``), with a manifest.
     """
     batch = {name: options.pop(name) for name in BATCH_OPTIONS}
+    scans = scan_mode(scans)
     if len(scenes) == 1 and not any(batch.values()) and "{" not in target + output:
         return fit_one(scenes[0], target, output, keys, iters, lr, truth, plot, quiet,
                        dialect, options, levels, scans)
     if truth is not None or plot is not None:
         raise click.BadParameter("--truth and --plot are for one scene",
                                  param_hint="--truth/--plot")
-    if levels != 1 or scans:
-        raise click.BadParameter("--levels and --scan are for one scene",
+    if levels != 1 or not isinstance(scans, str):
+        raise click.BadParameter("--levels and --scan KEY=LOW:HIGH:N are for one scene",
                                  param_hint="--levels/--scan")
     from raymitsuba.batch.templates import TemplateError, expand, fill
 
@@ -107,10 +111,25 @@ def fit(scenes, target, output, keys, iters, lr, levels, scans, truth, plot, qui
         targets = [fill(target, scene, i) for i, scene in enumerate(scenes)]
     except TemplateError as e:
         raise click.BadParameter(str(e))
-    run_batch(scenes, targets, outputs, keys, iters, lr, dialect, batch, options)
+    run_batch(scenes, targets, outputs, keys, iters, lr, dialect, batch, options, scans)
 
 
-def run_batch(scenes, targets, outputs, keys, iters, lr, dialect, batch, options):
+def scan_mode(scans):
+    """``--scan``'s values as :func:`raymitsuba.fit.fit` takes them: "auto" (none given, or
+    'auto'), "none", or the KEY=LOW:HIGH:N texts (not mixed with 'auto' or 'none')."""
+    words = [text.strip().lower() for text in scans]
+    if not scans or words == ["auto"]:
+        return "auto"
+    if words == ["none"]:
+        return "none"
+    if "auto" in words or "none" in words:
+        raise click.BadParameter("give 'auto', 'none' or KEY=LOW:HIGH:N grids, not a mix",
+                                 param_hint="--scan")
+    return tuple(scans)
+
+
+def run_batch(scenes, targets, outputs, keys, iters, lr, dialect, batch, options,
+              scan="auto"):
     """One fit per scene on Dask workers (raymitsuba.batch.fit.fit_many): a line for each
     that failed, a one-line summary; exit status 0, 1 (a fit failed) or 2 (a scene, its
     parameters or its target had an error)."""
@@ -121,7 +140,8 @@ def run_batch(scenes, targets, outputs, keys, iters, lr, dialect, batch, options
     try:
         items = fit_many(scenes, targets, outputs,
                          keys=None if keys is None else keys.split(","), iters=iters, lr=lr,
-                         dialect=dialect, report=report, manifest=manifest, **batch, **options)
+                         dialect=dialect, report=report, manifest=manifest, scan=scan, **batch,
+                         **options)
     except KeyboardInterrupt:
         fail("interrupted; the fitted scenes finished are kept (resume with --skip-existing)",
              130)
@@ -131,16 +151,20 @@ def run_batch(scenes, targets, outputs, keys, iters, lr, dialect, batch, options
 
 
 def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect, options,
-            levels=1, scans=()):
+            levels=1, scans="auto"):
     """Today's single fit, in this process."""
     from raymitsuba import fit as fitting
 
+    scan = scans
+    scans = () if isinstance(scans, str) else scans
     try:
         scans = [fitting.Scan.parse(text) for text in scans]
         for item in scans:
             item.values()  # (its range checked before the scene is read)
     except fitting.FitError as e:
         raise click.BadParameter(str(e), param_hint="--scan")
+    if scans:
+        scan = scans
 
     if plot is not None and os.path.splitext(plot)[1].lower() not in PLOT_FORMATS:
         raise click.BadParameter(f"{plot}: use one of {', '.join(PLOT_FORMATS)}",
@@ -196,7 +220,7 @@ def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect,
         backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
         loaded = api.load(model, width=width, height=height, **options)
         result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, callback=progress,
-                             levels=levels, scan=scans)
+                             levels=levels, scan=scan)
         fitted_text = fitting.rewrite_scene(data, model, result.fitted)
         if plot is not None:
             write_plot(plot, target_image, result, srgb)
@@ -212,7 +236,16 @@ def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect,
     except Exception as e:  # Mitsuba's own errors (e.g. a texture it cannot decode)
         fail(f"{scene}: {common.error_message(e)}", EXIT_FAILURE)
 
-    if result.scanned:
+    if result.scanned and scan == "auto":
+        for item in result.scans:
+            tried = [(values, loss) for values, loss in result.scanned if item.key in values]
+            best, loss = min(tried, key=lambda pair: pair[1])
+            click.echo(f"scanned {item.key} (auto; --scan none to skip): its start and "
+                       f"{item.count} values in [{item.low:.4g}, {item.high:.4g}]: best "
+                       f"{show(best[item.key])}  loss {loss:.6e}")
+        click.echo(f"  the automatic scan: {len(result.scanned)} renders, "
+                   f"{result.scan_seconds:.1f} s")
+    elif result.scanned:
         best, loss = min(result.scanned, key=lambda item: item[1])
         click.echo(f"scanned {len(result.scanned)} combination(s): best " + "  ".join(
             f"{key}={show(value)}" for key, value in best.items()) + f"  loss {loss:.6e}")

@@ -135,6 +135,35 @@ def test_a_scan_runs_first_and_a_bad_one_exits_2(files):
         assert not out.exists()
 
 
+def test_the_automatic_scan_is_the_default_and_none_turns_it_off(tmp_path, mitsuba):
+    """A fitted ior is scanned by default (its start and 32 values, the cost printed);
+    ``--scan none`` fits without; 'auto' mixed with a grid exits 2."""
+    from raymitsuba import images
+    from test_fit import GLASS_OVER_CHECKER
+
+    import raymitsuba
+
+    scene = tmp_path / "glass.ray"
+    scene.write_text(GLASS_OVER_CHECKER.replace("0 0.85 1.5\n", "0 0.85 1.15\n"))
+    target = tmp_path / "target.exr"
+    images.write(str(target), raymitsuba.render(raymitsuba.load(
+        GLASS_OVER_CHECKER, width=12, height=12, spp=4)).numpy())
+    out = tmp_path / "fitted.ray"
+    result = run(scene, "--target", target, "--params", "mat2.ior", "--iters", 1, "--spp", 4,
+                 "-o", out, "-q")
+    assert result.exit_code == 0, result.output + result.stderr
+    assert "scanned mat2.ior (auto; --scan none to skip): its start and 32 values in " \
+           "[0.7667, 1.725]: best " in result.stdout
+    assert "the automatic scan: 33 renders" in result.stdout
+    result = run(scene, "--target", target, "--params", "mat2.ior", "--iters", 1, "--spp", 4,
+                 "--scan", "none", "-o", out, "-q")
+    assert result.exit_code == 0, result.output + result.stderr
+    assert "scanned" not in result.stdout and "mat2.ior: 1.15 ->" in result.stdout
+    result = run(scene, "--target", target, "--scan", "auto", "--scan", "mat2.ior=1:2:3",
+                 "-o", out)
+    assert result.exit_code == 2 and "not a mix" in result.output + result.stderr
+
+
 def test_antialiasing_and_a_memory_budget_pass_through(files, monkeypatch):
     from raymitsuba import api
 
