@@ -44,6 +44,7 @@ gradient is enabled.
 from __future__ import annotations
 
 import dataclasses
+import re
 from typing import Dict, Optional
 
 import numpy as np
@@ -108,7 +109,9 @@ class GeometryKeys:
         if key not in self._refusals:
             self._refusals[key] = self._refusal(key)
         if self._refusals[key] is not None:
-            raise ParameterError(f"`{key}` cannot be a parameter: {self._refusals[key]}")
+            place = self.places.get(key)
+            at = "" if place is None else f"{self.model.file}:{place.line}:{place.column}: "
+            raise ParameterError(f"{at}`{key}` cannot be a parameter: {self._refusals[key]}")
 
     # -- which keys -----------------------------------------------------------------------------
     def _refusal(self, key: str) -> Optional[str]:
@@ -158,8 +161,8 @@ class GeometryKeys:
                         "spheres as one shape, which does not move; load the scene with "
                         "--sphere-set 0 (sphere_set=0) to fit them)")
                 if old != new:
-                    raise ParameterError(f"it moves `{name}`, a {old[1]} (a plane cannot move: "
-                                         "its rings are laid out under the camera, as far as "
+                    raise ParameterError(f"it moves {_object(name)}, and a plane cannot move "
+                                         "(its rings are laid out under the camera, as far as "
                                          "the horizon)")
                 continue
             if old[0] == "sphere" and np.any(old[3] != new[3]):
@@ -321,6 +324,13 @@ def _opaque(value):
 
     dr.make_opaque(value)
     return value
+
+
+def _object(name: str) -> str:
+    """The object a shape id names, for a message: ``the plane of line 6`` for ``plane_6``
+    (``translate.ShapeNames``: ``{kind}_{line}``, ``{kind}_{line}_{n}``), else the id."""
+    match = re.fullmatch(r"([a-z]+)_(\d+)(?:_\d+)?", name)
+    return f"the {match[1]} of line {match[2]}" if match else f"`{name}`"
 
 
 def _flat(geometry):
