@@ -10,6 +10,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..arrays import jit_array
+from ..lift import lifted_point
 from .lattice import NO_HIT, picked
 from .spot import cone_crossing
 from .terms import on_lanes, stacked
@@ -35,13 +36,15 @@ class Shadows:
         (the terminator: N.L) or lies outside a spot's cone (cos a, where its sign differs
         between L and R). ``choices``: see g_at (theirs: under ``name`` and the light)."""
         lanes = dr.width(si.p)
+        lifted = lifted_point(table, si, si.is_valid(), self.tracer.offset_scale)
         unblocked = jit_array(mi.Bool, stacked(blocker[:, 0] == NO_HIT, lanes))
         for j, source in enumerate(self.lights):
             mask = which & (light == j)
             if not mask.any():
                 continue
             wi, _, _ = source.illuminate(si.p)
-            shadow = mi.Ray3f(si.p, wi)
+            # (from where the renderer's shadow rays start: a ray epsilon off the surface)
+            shadow = self.tracer.shadow_ray(si, wi, lifted)
             facing = dr.dot(self.tracer.facing_normal(si, ray), wi)
             made = choices.get((name, "shadow", j))
             facing, crosses = cone_crossing(source, wi, facing, made, len(which), lanes)
