@@ -36,3 +36,21 @@ def test_a_long_shadows_edge_is_where_the_renderers_shadow_rays_switch(mi):
     w = weights()
     assert abs(np.sum(w * (grad - reference))) < 0.01 * np.sum(np.abs(w * reference))
     assert relative_l2(grad, reference) < 0.03
+
+
+def test_a_tessellated_cones_shadow_edge_keeps_its_jump_as_k_grows(mi):
+    """A cone (a smooth mesh of thin faces) casting a shadow: g is the blocking face's edge
+    function, and where several thin faces lie between two samples' shadow rays the edge of
+    that face that flips is an inner one, not the silhouette; the colors traced either side
+    of its crossing were both in the shadow, and the term was lost at every k (k = 16: 3.9 %
+    of the sum of sizes, per-pixel 48 %). Such a pair's jump is traced where the renderer's
+    shadow rays switch, found by bisection (``Terms.jump``); measured 0.4 % and 9 % at
+    k = 16 (the crossing's place and rate are still the inner edge's)."""
+    text = SHADOW.replace("scale 0.8 0.8 0.8\nsphere", "scale 0.6 1.2 0.6\ncone") \
+        .replace("point 1.5 4 1", "point 2.5 3 1")
+    direction = (0.6, 0.0, -0.8)
+    reference = finite_difference(mi, text, "light1.position", direction, 0.05)
+    grad = forward(mi, text, "light1.position", direction, 16 * 16)
+    w = weights()
+    assert abs(np.sum(w * (grad - reference))) < 0.01 * np.sum(np.abs(w * reference))
+    assert relative_l2(grad, reference) < 0.15
