@@ -11,13 +11,17 @@ materials, point / directional / spot lights, a random camera looking at the obj
 and one key of each kind that applies (:data:`KINDS`), along a random direction. Nobody
 tunes these scenes: run many seeds, not the ones that pass.
 
-**The reference** (``random_scenes.compare``). The central difference of the image rendered on the k_FD x k_FD
-lattice (``--fd-k``, spp = k_FD^2; the lattice stands for the pixel integral) with a step
+**The reference** (``random_scenes.compare``). The central difference of the image
+rendered on the k_FD x k_FD lattice (``--fd-k``, spp = k_FD^2; the lattice stands for the
+pixel integral) with a step
 h that moves the nearest edges by about EDGE_PX pixel (:func:`step`: from the pixel's size
 at the object's depth). It is validated against the same at k_FD / 2 and against h / 2 on
 the k_FD lattice; the FD's own uncertainty is the larger of the two differences (of the
 weighted sum, relative to |FD|), and a case whose uncertainty exceeds FD_UNSTABLE (or
-whose FD is zero: nothing visible moves) is *flagged* and not counted.
+whose FD is zero: nothing visible moves) is *flagged* and not counted; so is one whose
+image has a kink at the key's value (the weighted second difference above FD_KINK of the
+first: an edge on the image's border, which moves into it one way only -- a horizon at the
+top row -- where the central difference is the mean of two one-sided derivatives).
 
 **AD.** Forward mode on the k x k lattice (``--ks``, default 4, 8, 16); once per seed
 (its first key), reverse mode at the first k against forward mode (printed when they
@@ -26,12 +30,15 @@ differ by more than 1e-4 relative).
 Printed, per key kind: the number of cases counted (and flagged), the median and worst
 relative error of the weighted sum Sum w AD vs Sum w FD (fixed random weights), relative to
 |Sum w FD| and to Sum |w FD|, at each k, the median per-pixel relative L2 ||AD - FD|| /
-||FD||, and whether the median errors fall with k (and in how many cases the error at the
-last k is not below the first's). ``--cases`` also prints each case (seed, key, errors),
-so that a bad one can be taken apart: ``--seeds 1 --first-seed SEED --kinds KIND``.
+||FD|| (and the FD's own: the larger of its per-pixel differences at k_FD / 2 and h / 2,
+the floor under that column: the step moves edges by EDGE_PX pixel, and an edge running
+along a pixel's border is shared between two), and whether the median errors fall with k
+(and in how many cases the error at the last k is not below the first's). ``--cases``
+also prints each case (seed, key, errors), so that a bad one can be taken apart:
+``--seeds 1 --first-seed SEED --kinds KIND``.
 
 Cost: at 32 x 24 with k_FD = 96, about 4 s a case on this project's 2-core machine (the
-FD's six renders take most of it), 50 seeds (~400 cases) about 25 minutes.
+FD's seven renders take most of it), 50 seeds (~400 cases) about 25-30 minutes.
 """
 
 from __future__ import annotations
@@ -52,8 +59,8 @@ from random_scenes import FD_UNSTABLE, KINDS, compare, generate  # noqa: E402
 def table(cases, ks, kinds):
     print(f"| kind | cases: counted / vs abs(FD) (flagged) | " + " | ".join(
         f"k={k}: median / worst vs abs(FD) | vs sum abs(wFD) | pixel L2" for k in ks)
-        + " | falls with k (cases not falling) |")
-    print("| --- | --- | " + " | ".join("--- | --- | ---" for _ in ks) + " | --- |")
+        + " | falls with k (cases not falling) | FD's own pixel L2 |")
+    print("| --- | --- | " + " | ".join("--- | --- | ---" for _ in ks) + " | --- | --- |")
     for kind in kinds:
         all_ = [c for c in cases if c["kind"] == kind]
         if not all_:
@@ -79,8 +86,9 @@ def table(cases, ks, kinds):
                               if c["errors"][ks[-1]]["rel_size"]
                               >= c["errors"][ks[0]]["rel_size"])
             cells.append(f"{'yes' if falls else 'NO'} ({not_falling})")
+            cells.append(f"{statistics.median(c['fd_pixel_uncertainty'] for c in good):.1%}")
         else:
-            cells.append("-")
+            cells += ["-", "-"]
         print("| " + " | ".join(cells) + " |", flush=True)
 
 
@@ -127,7 +135,7 @@ def main():
                         for k, e in case["errors"].items())
                     line += (f" fd_unc {case['fd_uncertainty']:.2%}/"
                              f"{case['fd_uncertainty_size']:.2%}/"
-                             f"{case['fd_pixel_uncertainty']:.1%}")
+                             f"{case['fd_pixel_uncertainty']:.1%} kink {case['fd_kink']:.2%}")
                 if "reverse_vs_forward" in case:
                     line += f" rev-fwd {case['reverse_vs_forward']:.1e}"
                 if "flag" in case:

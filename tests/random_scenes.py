@@ -25,6 +25,10 @@ EDGE_PX = 0.25  # how far (pixels) the FD's step moves the nearest edges
 # an FD whose own uncertainty is above this, relative to |Sum w FD|, is not counted in the
 # errors relative to |Sum w FD|; above FD_UNSTABLE_SIZE relative to Sum |w FD|, in none
 FD_UNSTABLE, FD_UNSTABLE_SIZE = 0.01, 0.003
+# ... and whose second difference (I(+h) - 2 I + I(-h)) / 2h, weighted, is above FD_KINK of it:
+# the image has a kink at the key's value, where its one-sided derivatives differ (smooth
+# shading's curvature: up to ~6 % measured; a horizon on the image's border: 60-90 %)
+FD_KINK = 0.2
 KINDS = ("camera.eye", "camera.lookat", "camera.fov", "translate.offset", "rotate.angle",
          "scale.factors", "triangle.v", "sphere.center", "sphere.radius", "v.position",
          "light.position", "light.direction", "mat.ior")
@@ -281,19 +285,34 @@ def step(scale):
     return EDGE_PX * scale
 
 
-def lattice_difference(mi, text, key, direction, h, k, size):
-    """The central difference (H, W, 3) of the image on the k x k lattice per pixel: where
-    k > 64 (spp is at most 4096), the image at f times the size with (k / f)^2 samples per
-    pixel (the same lattice), averaged over f x f blocks."""
-    from support_edges import finite_difference
+def lattice_image(mi, text, key, value, k, size):
+    """The image (H, W, 3) on the k x k lattice per pixel with ``key`` set to ``value`` (None:
+    as loaded): where k > 64 (spp is at most 4096), the image at f times the size with
+    (k / f)^2 samples per pixel (the same lattice), averaged over f x f blocks."""
+    from support_edges import image, loaded
 
     f = -(-k // 64)
     while k % f:
         f += 1
     w, h_ = size
-    fine = finite_difference(mi, text, key, direction, h, spp=(k // f) ** 2, width=w * f,
-                             height=h_ * f)
+    fine = image(loaded(mi, text, (k // f) ** 2, key if value is not None else None, value,
+                        width=w * f, height=h_ * f))
     return fine.reshape(h_, f, w, f, 3).mean(axis=(1, 3))
+
+
+def lattice_difference(mi, text, key, direction, h, k, size, base=None):
+    """The central difference (H, W, 3) of the image on the k x k lattice per pixel
+    (:func:`lattice_image`); with ``base`` (a list), the image at the key's value itself
+    (one render more) is appended to it."""
+    from support_edges import loaded, value_of
+
+    x0 = value_of(loaded(mi, text, 1, width=size[0], height=size[1]), key)
+    u = np.asarray(direction, np.float64)
+    plus, minus = (lattice_image(mi, text, key, x0 + s * h * u, k, size) for s in (1, -1))
+    if base is not None:
+        base.append(lattice_image(mi, text, key, None, k, size))
+        base.append((plus + minus - 2.0 * base[0]) / (2.0 * h))
+    return (plus - minus) / (2.0 * h)
 
 
 def weights_for(size):
@@ -311,7 +330,8 @@ def compare(mi, s, kind, size, fd_k, ks, reverse_check=False):
     wts = weights_for(size)
     hh = step(scale)
     started = time.perf_counter()
-    fd = lattice_difference(mi, s.text, key, direction, hh, fd_k, size)
+    base = []  # (the image at the key's value, and the second difference / 2h)
+    fd = lattice_difference(mi, s.text, key, direction, hh, fd_k, size, base)
     coarse = lattice_difference(mi, s.text, key, direction, hh, fd_k // 2, size)
     half = lattice_difference(mi, s.text, key, direction, hh / 2, fd_k, size)
     fd_sum = float(np.sum(wts * fd))
@@ -325,9 +345,15 @@ def compare(mi, s, kind, size, fd_k, ks, reverse_check=False):
     out["fd_uncertainty"] = unc / abs(fd_sum)
     out["fd_uncertainty_size"] = unc / size_sum
     out["fd_pixel_uncertainty"] = max(relative_l2(coarse, fd), relative_l2(half, fd))
+    # a kink: the one-sided differences (I(+h) - I) / h and (I - I(-h)) / h differ by twice
+    # this (an edge that lies on the image's border, or moves into it one way only); the
+    # central difference is then their mean, which no derivative is
+    out["fd_kink"] = abs(float(np.sum(wts * base[1]))) / size_sum
     out["fd_seconds"] = time.perf_counter() - started
     if unc / size_sum > FD_UNSTABLE_SIZE:
         out["flag"] = f"FD unstable ({unc / size_sum:.2%} of sum abs(w FD))"
+    elif out["fd_kink"] > FD_KINK:
+        out["flag"] = f"FD one-sided (a kink: {out['fd_kink']:.2%} of sum abs(w FD))"
     out["rel_counted"] = unc / abs(fd_sum) <= FD_UNSTABLE
     errors = {}
     for k in ks:
