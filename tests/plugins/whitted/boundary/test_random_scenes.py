@@ -9,7 +9,7 @@ relative to |FD|); each case's measured error is beside it. Known limitations ar
 xfail (strict: a fix makes them pass and fail the run until the mark is taken off). No
 seed of the benchmark's 50 has a valid FD for rotate.angle or mat.ior (the rotation's step
 and eta's through glass balls are unstable at h / 2): those kinds are pinned by their own
-modules' scenes (test_visibility.py, test_chain.py)."""
+modules' scenes (test_visibility.py; test_tir.py, test_terms.py)."""
 
 from __future__ import annotations
 
