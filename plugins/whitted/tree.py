@@ -232,6 +232,19 @@ class Tracer:
         return mi.Ray3f(dr.fma(mag, dr.detach(si.n), si.p), d, dr.largest(mi.Float), si.time,
                         si.wavelengths)
 
+    def shadow_ray(self, si, wi, lifted=None):
+        """The shadow ray from the hit ``si`` toward a light in direction ``wi`` (no maxt):
+        :meth:`spawn_ray`'s, or, near a terminator of a smooth-shaded mesh, from the lifted
+        point ``lifted`` (``lift.lifted_point``; None: no smooth mesh). The boundary terms'
+        shadow edges start g's rays here too: the edge the image has is that of these rays
+        (the ray epsilon moves it, by a few hundredths of a lattice unit at k = 16 where a
+        shadow is long)."""
+        ray = self.spawn_ray(si, wi)
+        if lifted is not None:  # see lift.py
+            terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
+            ray.o = dr.select(terminator, lifted, ray.o)
+        return ray
+
     def intersect(self, scene, geometry, ray, coherent, queries=None):
         """The surface interaction of each ray: by lookup in the geometry table (see
         hits.py), or, for a scene with shapes the table does not know, through Mitsuba's
@@ -279,10 +292,7 @@ class Tracer:
         ``shadows``: a list that receives the shadow ray's closest blocker, found by a
         closest-hit query instead of the any-hit test (the same rays); ``blocker``:
         optional callable(ray, active) that finds it (a ``queries``' shadow, see trace)."""
-        ray = self.spawn_ray(si, wi)
-        if lifted is not None:  # see lift.py
-            terminator = (dr.dot(si.sh_frame.n, wi) > 0) & (dr.dot(si.n, wi) <= 0)
-            ray.o = dr.select(terminator, lifted, ray.o)
+        ray = self.shadow_ray(si, wi, lifted)
         ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
         # The walk is detached: the parameters reach the transmittance only through the kt
         # of the surfaces crossed (*which* surfaces are crossed changes in jumps), and that

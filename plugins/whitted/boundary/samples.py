@@ -8,6 +8,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..arrays import jit_array
+from ..lift import lifted_point
 from .chain import CHAIN_DEPTH, DEFAULT
 from .lattice import NO_HIT, _host, _host_keys, lattice_index, ring_points
 from .spot import has_cone, spot_cosine
@@ -175,13 +176,16 @@ class Samples:
                 "prim": si.prim_index, "t": dr.select(hit, si.t, dr.inf),
                 "cell": self.checker_cell(self.terms, si, hit), "lit": [], "occluder": []}
         n = self.tracer.facing_normal(si, rays)
+        # (the renderer's shadow rays: lifted off a smooth mesh near a terminator)
+        lifted = None if shadows is not None else \
+            lifted_point(self.terms.geometry, si, hit, self.tracer.offset_scale)
         for j, light in enumerate(self.lights):
             wi, dist, _ = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
             if has_cone(light):  # its cone, cos a > 0
                 active &= spot_cosine(light, wi) > 0
             if shadows is None:
-                shadow = self.tracer.spawn_ray(si, wi)
+                shadow = self.tracer.shadow_ray(si, wi, lifted)
                 shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
                 blocker = self.scene.ray_intersect_preliminary(shadow, coherent=False,
                                                                active=active)

@@ -1,8 +1,7 @@
 """Shadow edges of point, spot and directional lights, and the terminator (the package
 docstring, "Pairs"): what blocks a light at the unlit sample (:meth:`Shadows.blocker`) and
 g of a shadow pair (:meth:`Shadows.shadow_crossing`): the blocker's inside function on the
-shadow rays (``visibility.py``'s; the rays from where the tracer starts them, off the
-surface), or, where the unlit sample has no blocker, N.L (the
+shadow rays (``visibility.py``'s), or, where the unlit sample has no blocker, N.L (the
 terminator: it has no code of its own but this) or a spot's cos a (``spot.py``). The same
 function serves the shadow edges seen along the specular chain (``chain.py``)."""
 
@@ -11,6 +10,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..arrays import jit_array
+from ..lift import lifted_point
 from .lattice import NO_HIT, picked
 from .spot import cone_crossing
 from .terms import on_lanes, stacked
@@ -36,16 +36,15 @@ class Shadows:
         (the terminator: N.L) or lies outside a spot's cone (cos a, where its sign differs
         between L and R). ``choices``: see g_at (theirs: under ``name`` and the light)."""
         lanes = dr.width(si.p)
+        lifted = lifted_point(table, si, si.is_valid(), self.tracer.offset_scale)
         unblocked = jit_array(mi.Bool, stacked(blocker[:, 0] == NO_HIT, lanes))
         for j, source in enumerate(self.lights):
             mask = which & (light == j)
             if not mask.any():
                 continue
             wi, _, _ = source.illuminate(si.p)
-            # from where the tracer's shadow ray starts (off the surface, Tracer.spawn_ray):
-            # g's zero is then the edge the image has (from si.p itself it lay up to 0.03
-            # lattice units off at k = 16, past LIMIT: the jump's two rays missed it)
-            shadow = mi.Ray3f(self.tracer.spawn_ray(si, wi).o, wi)
+            # (from where the renderer's shadow rays start: a ray epsilon off the surface)
+            shadow = self.tracer.shadow_ray(si, wi, lifted)
             facing = dr.dot(self.tracer.facing_normal(si, ray), wi)
             made = choices.get((name, "shadow", j))
             facing, crosses = cone_crossing(source, wi, facing, made, len(which), lanes)

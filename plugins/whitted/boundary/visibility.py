@@ -120,8 +120,13 @@ class Visibility:
 
     def crossed_edge(self, table, ray, faces):
         """Per pair (an Int32 of P lanes, on the device): the edge of its face (``faces``:
-        :class:`Faces`, one per pair) whose function changes sign between the rays of L and
-        R (of the stacked rays ``ray``; the first such; -1: none, or not a face)."""
+        :class:`Faces`, one per pair) through which the segment between the rays of L and R
+        (of the stacked rays ``ray``) leaves or enters the face: of the edges whose function
+        changes sign between them, the one whose sign changes nearest the inside end (the
+        functions taken as linear along the segment); -1: none, or not a face. (Not merely
+        the first that flips: the line of another edge may also pass between L and R -- a
+        tessellation's thin triangles, whose long edges run side by side -- and crossing
+        that line is no edge of the surface.)"""
         count = dr.width(faces.prim)
         if not table.has_meshes:
             return dr.full(mi.Int32, -1, count)
@@ -132,9 +137,18 @@ class Visibility:
                 d = dr.normalize(dr.detach(rays.d))
                 rays = mi.Ray3f(dr.detach(rays.o), d)
                 sides.append(self.edge_functions(table, rays, d, faces.row, faces.prim, mesh))
-            edge = mi.Int32(-1)
-            for i in (2, 1, 0):  # (the first edge that flips)
-                edge = dr.select(signs_differ(sides[0][i], sides[1][i]), i, edge)
+            # the end inside the face: where the least of the three functions is the larger
+            l_inside = dr.minimum(dr.minimum(sides[0][0], sides[0][1]), sides[0][2]) >= \
+                dr.minimum(dr.minimum(sides[1][0], sides[1][1]), sides[1][2])
+            edge, nearest = mi.Int32(-1), mi.Float(dr.inf)
+            for i in (0, 1, 2):
+                a, b = sides[0][i], sides[1][i]
+                flips = signs_differ(a, b)
+                at = a / (a - b)  # where the function is zero, from L (0) to R (1)
+                from_inside = dr.select(l_inside, at, 1.0 - at)
+                better = flips & (from_inside < nearest)
+                edge = dr.select(better, i, edge)
+                nearest = dr.select(better, from_inside, nearest)
             return dr.select(mesh, edge, -1)
 
     def depth(self, table, ray, faces):

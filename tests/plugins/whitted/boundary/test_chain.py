@@ -4,9 +4,11 @@ and chains that reach the last bounce followed."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from support_edges import MIRRORED_SHADOW, assert_matches_finite_differences, pairs_of_a_step
+from support_edges import (MIRRORED_SHADOW, assert_matches_finite_differences, finite_difference,
+                           forward, pairs_of_a_step, weights)
 
 
 @pytest.mark.parametrize("text, key, direction, h", [
@@ -52,3 +54,37 @@ def test_chains_that_reach_the_last_bounce_followed_form_their_pairs(mi, monkeyp
     assert edges.chain_bounces() == boundary.CHAIN_DEPTH
     assert set(found["depth"].tolist()) >= set(range(boundary.CHAIN_DEPTH))
     assert np.all(np.isfinite(dr.grad(scene.params["camera.eye"]).numpy()))
+
+
+MIRROR_BALL = """\
+eye 0 1.5 6
+lookat 0 -0.2 0
+fov 40
+background 0.2 0.3 0.5
+light 0.2 0.2 0.2 ambient
+surface 0.8 0.6 0.4 0.3 0.7 0 1 0 0 1
+triangles
+v -6 -1 -6
+v 6 -1 -6
+v 6 -1 6
+v -6 -1 6
+f 0 1 2
+f 0 2 3
+end
+surface 0.7 0.7 0.7 0.2 0.3 0.3 20 0.7 0 1
+sphere 0 0 0 0.9
+"""
+
+
+def test_an_edge_seen_in_a_mirror_balls_rim_keeps_its_jump(mi):
+    """A mirror ball's radius (MIT): the floor's far edge, seen in the ball, crowds towards
+    its rim, where g (replayed along the chain) is far from linear over a lattice unit; the
+    colors traced either side of its crossing both saw the same side of the reflected
+    edge, and such terms were lost at every k (k = 8: weighted sum 19 % of the sum of sizes
+    off). Where the chain's key at the traced sides is not L's and R's, the jump is traced
+    where it switches, found by bisection (``Terms.jump``): measured 8.3 %. The rest is the
+    reflection compressed at the rim (finer than the lattice, docs/gradients.md)."""
+    reference = finite_difference(mi, MIRROR_BALL, "sphere1.radius", (1.0,), 0.03)
+    grad = forward(mi, MIRROR_BALL, "sphere1.radius", (1.0,), 64)
+    w = weights()
+    assert abs(np.sum(w * (grad - reference))) < 0.12 * np.sum(np.abs(w * reference))

@@ -1,0 +1,56 @@
+"""The boundary terms on random scenes (tests/random_scenes.py, the scenes of
+benchmarks/random_edges.py): for each kind of key, the first seed whose finite difference
+the benchmark found valid (not flagged: its FD stable at k_FD / 2 and h / 2, no kink; the
+seeds are not chosen for their AD), AD in forward mode against the pixel-integrated finite
+difference of the 64 x 64 lattice, the weighted sum's error relative to the sum of the terms'
+sizes Sum |w FD| (the benchmark's "vs sum abs(wFD)"; a derivative of both signs may nearly
+cancel in the sum itself). The tolerance is 3 % (the issue's target for k = 4, there
+relative to |FD|); each case's measured error is beside it. Known limitations are marked
+xfail (strict: a fix makes them pass and fail the run until the mark is taken off). No
+seed of the benchmark's 50 has a valid FD for mat.ior (eta's FD through glass balls moves
+at h / 2 and k_FD / 2), one for rotate.angle (seed 42): those kinds are pinned by their own
+modules' scenes too (test_visibility.py; test_tir.py, test_terms.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from random_scenes import generate, lattice_difference, step, weights_for
+from support_edges import forward
+
+SIZE, FD_K = (32, 24), 64
+MIRROR_RIM = pytest.mark.xfail(strict=True, reason=(
+    "edges seen in a mirror ball crowd towards its rim, finer than the lattice "
+    "(docs/gradients.md, 'Edges on random scenes')"))
+
+# (kind, seed, k): measured error at that k, relative to Sum |w FD|
+CASES = [
+    ("camera.eye", 1, 4),  # 0.5 %
+    ("camera.lookat", 1, 4),  # 0.2 %
+    pytest.param("camera.fov", 5, 4, marks=MIRROR_RIM),  # 7 %: a mirror ball
+    ("translate.offset", 6, 8),  # 2.0 % at k = 4, 0.3 % at k = 8
+    ("rotate.angle", 42, 16),  # 7.9 % at k = 4, 2.2 % at k = 8, 0.7 % at k = 16
+    ("scale.factors", 4, 4),  # 0.4 %
+    ("triangle.v", 6, 4),  # 1.9 %
+    ("sphere.center", 1, 4),  # 0.4 %
+    # (seed 11, the first valid: a sphere 0.007 above the floor, which the FD's step of
+    # 0.066 pushes through it -- a crease the derivative at the key's value has not; 15 %
+    # at k = 4, 3.1 % at k = 16, falling to the FD's share of it)
+    ("sphere.radius", 33, 4),  # 0.4 %
+    ("v.position", 27, 8),  # 12 % at k = 4, 1.4 % at k = 8
+    ("light.position", 1, 4),  # 0.5 %
+    ("light.direction", 2, 4),  # 1.5 %
+]
+
+
+@pytest.mark.parametrize("kind, seed, k", CASES)
+def test_a_random_scenes_key_matches_the_pixel_integrated_finite_difference(mi, kind, seed,
+                                                                             k):
+    scene = generate(seed, SIZE)
+    key, direction, scale = scene.keys[kind]
+    reference = lattice_difference(mi, scene.text, key, direction, step(scale), FD_K, SIZE)
+    grad = forward(mi, scene.text, key, direction, k * k, width=SIZE[0], height=SIZE[1])
+    w = weights_for(SIZE)
+    error = abs(np.sum(w * (grad - reference))) / np.sum(np.abs(w * reference))
+    assert error < 0.03, error
