@@ -9,32 +9,21 @@ error; ``--scan none`` runs the same fits without the scan (the steps alone).
     ./dev python benchmarks/fit_auto.py [--size 64x48] [--iters 100] [--scan auto|none]
                                         [--only eta,eta+kt,fov+,fov-,fov20,light]
 
-The scene is the one of ``examples/fit_glass.py --checker 0.4`` (also ``GLASS_OVER_CHECKER``
-of tests/test_fit.py); spp 16 (a 4 x 4 lattice: the checker edges' derivatives).
+The scene is ``GLASS_OVER_CHECKER`` of tests/test_fit.py (that of ``examples/fit_glass.py
+--checker 0.4``); spp 16 (a 4 x 4 lattice: the checker edges' derivatives).
 """
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 import time
 
 import numpy as np
 
-SCENE = """\
-eye 0.15 0.1 6
-lookat 0 0 0
-fov 30
-light 1 0.55 0.3 point -1.2 0.8 -2.2
-light 0.3 0.6 1 point 1.3 -0.6 -2.4
-light 0.15 0.15 0.15 ambient
-material 0.9 0.9 0.9 0.5 0.9 0 1 0 0 1
-rotateX 90
-translate 0 0 -3
-checkerboard 0.4
-plane
-reset
-material 1 1 1 0 0 0 1 0 0.85 1.5
-sphere
-"""
+# the scene of tests/test_fit.py (one copy; lookat is the default origin)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+from test_fit import GLASS_OVER_CHECKER as SCENE  # noqa: E402
 
 # name: (keys, start values, the key whose error is reported, its true value)
 FITS = {
