@@ -199,8 +199,7 @@ class Pairs:
 
     def moves(self, shape):
         """Whether the shapes ``shape`` (registry ids, numpy; NO_HIT: none) move."""
-        last = len(self.shape_moves) - 1
-        return self.shape_moves[np.where(shape < last, shape, last)]
+        return np.take(self.shape_moves, shape, mode="clip")  # (NO_HIT: the last entry)
 
     def kept(self, kind):
         """Where a pair of ``kind`` (int8 array; -1: none, or left out) is formed."""
