@@ -55,11 +55,14 @@ MATERIAL_COLUMNS = 3 + len(Material.FIELDS) - 1
 def material_table(materials) -> np.ndarray:
     """The set's material table (n, MATERIAL_COLUMNS) float32 of ``materials``: a row each,
     the color r g b, then the other fields of ``Material.FIELDS`` in their order (read as
-    one stream of floats)."""
-    fields = operator.attrgetter(*Material.FIELDS)
-    values = chain.from_iterable((*color, *rest) for color, *rest in map(fields, materials))
-    return np.fromiter(values, np.float64, MATERIAL_COLUMNS * len(materials)) \
-        .astype(np.float32).reshape(-1, MATERIAL_COLUMNS)
+    two streams of floats: the colors, the rest)."""
+    n = len(materials)
+    table = np.empty((n, MATERIAL_COLUMNS), np.float64)
+    colors = chain.from_iterable(map(operator.attrgetter("color"), materials))
+    table[:, :3] = np.fromiter(colors, np.float64, 3 * n).reshape(n, 3)
+    rest = chain.from_iterable(map(operator.attrgetter(*Material.FIELDS[1:]), materials))
+    table[:, 3:] = np.fromiter(rest, np.float64, (MATERIAL_COLUMNS - 3) * n).reshape(n, -1)
+    return table.astype(np.float32)
 
 
 def material_column(field: str):
