@@ -95,7 +95,7 @@ from raymitsuba.format.writeback import (MATERIAL_FIELDS, ParameterError, Value,
 from raymitsuba.model import Scene
 
 __all__ = ["AUTO_SCAN", "AUTO_SCAN_COUNT", "AUTO_SCAN_RATIO", "FitError", "FitResult",
-           "MAX_SCAN", "Scan", "auto_scans", "Step", "LOWER_BOUNDS", "MATERIAL_FIELDS", "Value",
+           "MAX_SCAN", "Scan", "auto_scans", "check_keys", "Step", "LOWER_BOUNDS", "MATERIAL_FIELDS", "Value",
            "clamp_value", "coarse", "default_keys", "downsampled", "level_of", "field_of", "fit", "model_values", "parameter_error",
            "rewrite_scene", "select_keys", "set_values", "to_python", "writable_keys",
            "write_scene"]
@@ -314,11 +314,7 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     keys = list(default_keys(loaded.model) if keys is None else keys)
     if not keys:
         raise FitError("no parameters to fit")
-    for key in keys:
-        if key not in params:
-            raise FitError(f"unknown parameter `{key}`; valid keys: {', '.join(params.keys())}")
-        if loaded.geometry is not None and key in loaded.geometry.values:
-            loaded.geometry.check(key)  # (a FitError: a key that cannot move, and why)
+    check_keys(loaded, keys)
     target = np.asarray(target, dtype=np.float32)
     shape = (loaded.options.height, loaded.options.width, 3)
     if target.shape != shape:
@@ -407,6 +403,17 @@ def fit(loaded, target, keys: Optional[Sequence[str]] = None, iters: int = 100,
     result.final_loss = float(np.mean(np.square(final.astype(np.float64) - target)))
     result.seconds = time.perf_counter() - started
     return result
+
+
+def check_keys(loaded, keys: Sequence[str]) -> None:
+    """FitError, before anything is rendered, for a key of ``keys`` that ``loaded`` does
+    not have or that cannot move (a plane's transform: the message says where and why)."""
+    params = loaded.params
+    for key in keys:
+        if key not in params:
+            raise FitError(f"unknown parameter `{key}`; valid keys: {', '.join(params.keys())}")
+        if loaded.geometry is not None and key in loaded.geometry.values:
+            loaded.geometry.check(key)
 
 
 def auto_scans(keys: Sequence[str], params) -> List[Scan]:

@@ -219,12 +219,10 @@ def fit_one(scene, target, output, keys, iters, lr, truth, plot, quiet, dialect,
     try:
         backend.mitsuba(mitsuba_integrators=False)  # raywhitted only: skip Mitsuba's integrators
         loaded = api.load(model, width=width, height=height, **options)
-        for key in selected:  # a key that cannot move is bad input (status 2), and why
-            if loaded.geometry is not None and key in loaded.geometry.values:
-                try:
-                    loaded.geometry.check(key)
-                except fitting.FitError as e:
-                    fail(str(e))
+        try:  # a key that cannot move is bad input (status 2), said before any render
+            fitting.check_keys(loaded, selected)
+        except fitting.FitError as e:
+            fail(str(e))
         result = fitting.fit(loaded, target_image, selected, iters=iters, lr=lr, callback=progress,
                              levels=levels, scan=scan)
         fitted_text = fitting.rewrite_scene(data, model, result.fitted)
