@@ -57,7 +57,7 @@ import collections
 import dataclasses
 import math
 import operator
-from itertools import chain, compress, count
+from itertools import chain, compress, count, repeat
 from dataclasses import dataclass
 from typing import Optional
 
@@ -189,10 +189,11 @@ class Surfaces:
     def of_groups(self, groups) -> list:
         """The id of each group's surface (:class:`Groups`: one look-up per group, its
         objects share it): the material's own where the group is untextured."""
-        first = groups.first.tolist()
-        return [f"mat{material}" if texture is None and checker is None  # (untextured())
-                else self.id(groups.objs[first[g]])
-                for g, (_, material, texture, checker) in enumerate(groups.keys)]
+        ids = list(map("mat{}".format, map(operator.itemgetter(1), groups.keys)))
+        textured = ~(groups.is_(2, None) & groups.is_(3, None))  # (not untextured())
+        for g, first in zip(np.flatnonzero(textured).tolist(), groups.first[textured].tolist()):
+            ids[g] = self.id(groups.objs[first])
+        return ids
 
     def id(self, obj: SceneObject) -> str:
         """The id of the BSDF of ``obj``'s surface (made on first use)."""
@@ -349,6 +350,12 @@ class Groups:
         self.start = np.concatenate([[0], np.cumsum(np.bincount(self.group,
                                                                 minlength=len(self.keys)))])
 
+    def is_(self, field: int, value) -> np.ndarray:
+        """Which groups' key has ``value`` (compared by identity) as its ``field``-th item:
+        (n groups,) bool, read in a C loop (a scene may hold 10^5 groups)."""
+        fields = map(operator.itemgetter(field), self.keys)
+        return np.fromiter(map(operator.is_, fields, repeat(value)), bool, len(self.keys))
+
     def kinds(self) -> list:
         """Each group's kind of object."""
         return list(map(operator.itemgetter(0), self.keys))
@@ -392,11 +399,8 @@ class CurvedObjects:
         self.to_world = matrices(self.objs)
         self.material = np.fromiter(map(operator.attrgetter("material"), self.objs), np.int64,
                                     len(self.objs))
-        group_sphere = np.array([kind is ObjectKind.SPHERE for kind, *_ in groups.keys], bool)
-        group_untextured = np.array([texture is None and checker is None
-                                     for _, _, texture, checker in groups.keys], bool)
-        self.sphere = group_sphere[self.group]
-        self.untextured = group_untextured[self.group]
+        self.sphere = groups.is_(0, ObjectKind.SPHERE)[self.group]
+        self.untextured = (groups.is_(2, None) & groups.is_(3, None))[self.group]
         self.exact = self.sphere & sphere_set.is_similarity(self.to_world[:, :3, :3])
 
     def sphere_to_world(self, which) -> np.ndarray:

@@ -98,10 +98,14 @@ def pack(to_world: np.ndarray, ellipsoid: np.ndarray = None) -> np.ndarray:
 def is_similarity(linear: np.ndarray) -> np.ndarray:
     """Which linear parts (n, 3, 3) are a rotation times a positive uniform scale (no
     mirroring, no shear): the transforms of spheres."""
-    gram = np.einsum("nki,nkj->nij", linear, linear)
-    scale2 = np.trace(gram, axis1=1, axis2=2) / 3.0
-    off = np.abs(gram - scale2[:, None, None] * np.eye(3)).max(axis=(1, 2))
-    return (np.linalg.det(linear) > 0) & (off <= 1e-9 * scale2)
+    c0, c1, c2 = linear[:, :, 0], linear[:, :, 1], linear[:, :, 2]  # the columns
+    dot = lambda a, b: (a * b).sum(axis=1)  # noqa: E731
+    diagonal = np.stack([dot(c0, c0), dot(c1, c1), dot(c2, c2)])  # the Gram matrix's
+    scale2 = diagonal.sum(axis=0) / 3.0
+    off = np.abs(np.stack([dot(c0, c1), dot(c0, c2), dot(c1, c2)])).max(axis=0)
+    off = np.maximum(off, np.abs(diagonal - scale2).max(axis=0))
+    det = dot(c0, np.cross(c1, c2))
+    return (det > 0) & (off <= 1e-9 * scale2)
 
 
 def unpack(data: np.ndarray):
