@@ -19,10 +19,11 @@ pop, and an object simply takes ``stack[-1]``.
 from __future__ import annotations
 
 import math
-from functools import partial
-from itertools import compress, count, repeat
-from operator import and_, eq, is_, itemgetter
+from itertools import chain, compress, count, repeat
+from operator import and_, eq, itemgetter, not_
 from typing import Dict, List, Optional, Tuple
+
+from fastnumbers import RAISE, try_float
 
 from raymitsuba.format import commands as C
 from raymitsuba.format.builder import (FAST_MATERIAL_PLANS as MATERIAL_PLANS,
@@ -56,10 +57,11 @@ _SOLIDS = frozenset({"sphere", "cylinder", "cone"})
 _TRANSFORMS = frozenset({"scale", "rotatex", "rotatey", "rotatez"})
 _HEAD = itemgetter(0)
 _OPERANDS = itemgetter(slice(1, None))
-_FLOATS = partial(map, float)
 #: What :func:`_read_lines` makes of a line without tokens, and of a line that is not simple.
-_BLANK = "blank"
-_EXACT = "exact"
+#: (Shaped as a simple line's reading, with a command word no line has: the hot loop of
+#: :meth:`Comp575Parser._carry_out` tells them apart only after the hot commands.)
+_BLANK = ("(blank)", None, None)
+_EXACT = ("(exact)", None, None)
 
 
 def _read_lines(texts: List[str]) -> list:
@@ -70,12 +72,12 @@ def _read_lines(texts: List[str]) -> list:
     A line is simple when it is ASCII (``str.split`` then splits on exactly spaces and tabs,
     as the exact path), its command word is a fixed-operand command's, its token count that
     command's (:data:`raymitsuba.format.commands.COMP575_COMMANDS`), and every operand a
-    finite float literal, read by ``float`` (as the exact path reads it: the same bits). A
-    ``#`` comment never passes: ``#`` is in no command word and no ``float`` reads it.
+    finite float literal, read to the bits ``float`` reads (see :func:`_operands`). A ``#``
+    comment never passes: ``#`` is in no command word and no number.
 
     The work is done for all the lines at once, in C loops (``map`` of ``str.split``, of
-    ``str.lower``, of ``float``); only a bad number sends the lines through a loop of their
-    own, which finds it. (Numbers too large to sum also do: the sum proves them finite.)
+    ``str.lower``, :func:`_operands`); only a bad number sends the lines through a loop of
+    their own, which finds it. (Numbers too large to sum also do: the sum proves them finite.)
     """
     split = list(map(str.split, texts))
     words = list(filter(None, split))
@@ -84,12 +86,10 @@ def _read_lines(texts: List[str]) -> list:
     if not all(map(str.isascii, texts)):
         ascii_ = compress(map(str.isascii, texts), split)
         simple = list(map(and_, simple, ascii_))
-    try:
-        values = list(map(tuple, map(_FLOATS, map(_OPERANDS, compress(words, simple)))))
-        total = sum(map(sum, values))
-        finite = total - total == 0.0
-    except ValueError:  # a bad number somewhere
-        finite = False
+    values = _operands(list(compress(words, simple)))
+    if values is not None and len(words) == len(texts) and all(simple):
+        return list(zip(keys, words, values))  # the common case: every line simple
+    finite = values is not None
     if not finite:
         values = [v for v in map(_finite_operands, compress(words, simple))]
     read = zip(compress(keys, simple), compress(words, simple), values)
@@ -105,6 +105,35 @@ def _read_lines(texts: List[str]) -> list:
         else:
             out.append(_EXACT)
     return out
+
+
+def _operands(words: List[List[str]]) -> Optional[list]:
+    """The operands of each line's tokens ``words`` (the command word first) as a tuple of
+    floats, or None when one is not a finite float literal (or the sum of all overflows).
+
+    The numbers are read all at once, by ``fastnumbers.try_float`` (the fast_float algorithm,
+    correctly rounded: the bits ``float`` reads; it refuses what ``float`` refuses, and
+    refuses ``_`` in a number, which then takes the line-by-line path); the lines of one
+    token count share one flat list, regrouped into tuples by ``zip``.
+    """
+    counts = list(map(len, words))
+    tuples_of = {}
+    total = 0.0
+    try:
+        for n in set(counts):
+            if n == 1:
+                tuples_of[1] = repeat(())
+                continue
+            same = compress(words, map(eq, counts, repeat(n)))
+            flat = try_float(list(chain.from_iterable(map(_OPERANDS, same))), map=list,
+                             on_fail=RAISE)
+            total += sum(flat)
+            tuples_of[n] = zip(*[iter(flat)] * (n - 1))
+    except ValueError:  # a bad number somewhere
+        return None
+    if total - total != 0.0:
+        return None
+    return list(map(next, map(tuples_of.__getitem__, counts)))
 
 
 def _transform(key: str, composite: Matrix4, v: Tuple[float, ...]):
@@ -156,6 +185,8 @@ class Comp575Parser(SceneBuilder):
         self._line = ""
         self._known: Dict[str, object] = {}  # the bulk path's readings, by line text
         self._from_identity: Dict[str, Tuple[Matrix4, float]] = {}  # transform lines' composites
+        # a good material line's fields but its index and line number, by line text
+        self._material_lines: Dict[str, tuple] = {}
         handlers = {
             "eye": self._camera_vector, "lookat": self._camera_vector, "up": self._camera_vector,
             "fov": self._fov, "background": self._background,
@@ -195,8 +226,8 @@ class Comp575Parser(SceneBuilder):
         for start in range(0, len(lines), CHUNK):
             chunk = lines[start:start + CHUNK]
             found = list(map(known.get, chunk))
-            if None in found:
-                fresh = list(dict.fromkeys(compress(chunk, map(is_, found, repeat(None)))))
+            if not all(found):  # a reading is never falsy: None is a line not seen before
+                fresh = list(dict.fromkeys(compress(chunk, map(not_, found))))
                 read = dict(zip(fresh, _read_lines(fresh)))
                 if len(known) < _KNOWN_LINES:
                     known.update(read)
@@ -238,20 +269,15 @@ class Comp575Parser(SceneBuilder):
         objects, materials = self.objects, self.materials
         append = objects.append
         from_identity = self._from_identity
+        material_lines = self._material_lines
+        material_fields = material_lines.get
         color_of, scalars_of, ior_at, reciprocal = MATERIAL_PLANS["material"]
         assert not reciprocal  # COMP 575 holds eta itself
-        for ln, read in zip(count(first), found):
-            if read is _BLANK:
-                continue
-            if read is _EXACT:
-                self._run_line(ln, lines[ln - 1])
-                continue
-            key, toks, v = read
+        for ln, (key, toks, v) in zip(count(first), found):
             # the hot commands, when they cannot report anything; else their handler
             if key == "pop":
                 if len(stack) > 1:
-                    stack.pop()
-                    magnitudes.pop()
+                    del stack[-1], magnitudes[-1]
                     continue
             elif key in _SOLIDS:
                 if self.first_object_at is not None:
@@ -301,18 +327,26 @@ class Comp575Parser(SceneBuilder):
                     magnitudes.append(pushed[1])
                     continue
             elif key == "material":  # SceneBuilder._material_fast, inlined
-                if min(v) >= 0.0:
+                line = lines[ln - 1]
+                fields = material_fields(line)
+                if fields is None and min(v) >= 0.0:
                     scalars = scalars_of(v)
                     if scalars[ior_at] > 0.0:
-                        line = lines[ln - 1]
                         column = 1 if line[0] not in " \t" else \
                             len(line) - len(line.lstrip(" \t")) + 1
-                        materials.append(make_material(color_of(v), *scalars, len(materials),
-                                                       ln, column))
-                        continue
+                        fields = (color_of(v),) + scalars, column
+                        if len(material_lines) < _KNOWN_LINES:
+                            material_lines[line] = fields
+                if fields is not None:
+                    materials.append(make_material(*fields[0], len(materials), ln, fields[1]))
+                    continue
             elif key == "triangle":
                 if self.first_object_at is not None and self._triangle_fast(v, ln):
                     continue
+            elif toks is None:  # _BLANK or _EXACT
+                if key == "(exact)":
+                    self._run_line(ln, lines[ln - 1])
+                continue
             self._ln, self._line, self._toks, self._ascii = ln, lines[ln - 1], toks, True
             self._cmd, handler = handlers[key]
             handler()

@@ -172,6 +172,31 @@ def test_values_are_the_exact_paths_bits():
     assert math.copysign(1.0, second[0][3]) == -1.0  # -1 * 0 + -0: -0
 
 
+number_literals = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False).map(repr),
+    st.floats(allow_nan=False, allow_infinity=False).map(lambda x: f"{x:.15g}"),
+    st.from_regex(r"[+-]?[0-9]{1,30}(\.[0-9]{0,30})?([eE][+-]?[0-9]{1,3})?", fullmatch=True),
+    st.text("0123456789.eE+-_xinfatyINFATY", min_size=1, max_size=8))
+
+
+@given(st.lists(st.lists(number_literals, min_size=0, max_size=9), min_size=1, max_size=6))
+def test_bulk_numbers_are_the_bits_float_reads(operands):
+    """The bulk number reader (fastnumbers) reads every literal it accepts to the bits of
+    ``float``; a line with one it refuses, or with a non-finite one, is sent on (None)."""
+    words = [["cmd"] + ops for ops in operands]
+    try:
+        expected = [tuple(map(float, ops)) for ops in operands]
+    except ValueError:
+        expected = None
+    if expected is not None and not all(math.isfinite(x) for v in expected for x in v):
+        expected = None
+    got = comp575._operands(words)
+    if got is None:  # refused: an underscore, or a sum that overflows; never a wrong value
+        return
+    assert expected is not None
+    assert [bits(v) for v in got] == [bits(v) for v in expected]
+
+
 def test_line_numbers_and_materials_across_chunks():
     text = "".join(f"material {k % 10 / 10} 1 1 0.1 0.7 0.3 20 0 0 1\n"
                    f"translate {k} 0 0\nsphere\npop\n" for k in range(40))
