@@ -2,6 +2,12 @@
 
     .venv/bin/python benchmarks/parse_bench.py [--max-exponent 6] [--repeat 3]
 
+Two tables. The first, below. The second reads the scale ladder's scenes
+(``scale_bench.py``), whose every line is *simple* (a command word and its numbers, no
+comment): the spheres scene (six lines an object: its own material, scale, translate,
+sphere, two pops; the translations all distinct) against issue 31's target of 10^6 lines a
+second, and the triangles scene (one line of nine distinct numbers a triangle).
+
 The scene mixes every kind of line (objects, transforms with matching pops,
 materials, lights, comments, blank lines). The parser is linear when the time
 grows about tenfold per tenfold of lines, which the `ratio` column shows. The
@@ -22,6 +28,10 @@ import statistics
 import time
 
 from raymitsuba.format.parser import parse_text
+from scale_bench import spheres, triangles
+
+#: Issue 31: simple lines read per second, at least.
+SIMPLE_TARGET = 1e6
 
 BLOCK = """\
 # a block of 20 lines that leaves the stack as it found it
@@ -87,6 +97,17 @@ def main() -> None:
         print(f"{10 ** exponent:>10} {seconds:9.3f} {10 ** exponent / seconds:11.0f} {ratio}"
               f" {seconds / floor:8.1f}   ({len(scene.objects)} objects)")
         previous = seconds
+    print(f"\n{'simple lines':>22} {'lines':>9} {'seconds':>9} {'lines/s':>11}  target")
+    for exponent in range(4, min(args.max_exponent, 5) + 1):
+        for name, family in (("spheres", spheres), ("triangles", triangles)):
+            text = family(10 ** exponent)
+            lines = text.count("\n")
+            seconds, scene = timed(parse_text, text, args.repeat)
+            rate = lines / seconds
+            verdict = (f"{'met' if rate >= SIMPLE_TARGET else 'NOT met'} "
+                       f"({rate / SIMPLE_TARGET:.2f} of 10^6)") if name == "spheres" else ""
+            print(f"{f'{name} 10^{exponent}':>22} {lines:>9} {seconds:9.3f} {rate:11.0f}  "
+                  f"{verdict}")
 
 
 if __name__ == "__main__":

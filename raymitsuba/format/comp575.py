@@ -187,17 +187,20 @@ class Comp575Parser(SceneBuilder):
         self._from_identity: Dict[str, Tuple[Matrix4, float]] = {}  # transform lines' composites
         # a good material line's fields but its index and line number, by line text
         self._material_lines: Dict[str, tuple] = {}
+        # the handlers as functions of the class, called with self: a table of bound methods
+        # would make the parser a cycle, its scene kept until a full collection
+        cls = type(self)
         handlers = {
-            "eye": self._camera_vector, "lookat": self._camera_vector, "up": self._camera_vector,
-            "fov": self._fov, "background": self._background,
-            "sphere": self._primitive, "plane": self._primitive,
-            "cylinder": self._primitive, "cone": self._primitive, "triangle": self._triangle,
-            "light": self._light,
-            "translate": self._translate, "scale": self._scale,
-            "rotatex": self._rotate, "rotatey": self._rotate, "rotatez": self._rotate,
-            "reset": self._reset, "pop": self._pop,
-            "material": self._material, "texture": self._texture,
-            "checkerboard": self._checkerboard,
+            "eye": cls._camera_vector, "lookat": cls._camera_vector, "up": cls._camera_vector,
+            "fov": cls._fov, "background": cls._background,
+            "sphere": cls._primitive, "plane": cls._primitive,
+            "cylinder": cls._primitive, "cone": cls._primitive, "triangle": cls._triangle,
+            "light": cls._light,
+            "translate": cls._translate, "scale": cls._scale,
+            "rotatex": cls._rotate, "rotatey": cls._rotate, "rotatez": cls._rotate,
+            "reset": cls._reset, "pop": cls._pop,
+            "material": cls._material, "texture": cls._texture,
+            "checkerboard": cls._checkerboard,
         }
         self._handlers = {key: (_CANONICAL[key], fn) for key, fn in handlers.items()}
 
@@ -252,7 +255,7 @@ class Comp575Parser(SceneBuilder):
             self._unknown_command()
         else:
             self._cmd, handler = entry
-            handler()
+            handler(self)
 
     def _carry_out(self, lines: List[str], first: int, found: list) -> None:
         """Carry out lines ``first ...``, read as ``found`` (:func:`_read_lines`).
@@ -349,7 +352,7 @@ class Comp575Parser(SceneBuilder):
                 continue
             self._ln, self._line, self._toks, self._ascii = ln, lines[ln - 1], toks, True
             self._cmd, handler = handlers[key]
-            handler()
+            handler(self)
 
     def _where(self, index: int) -> Tuple[int, int, str]:
         line = self._line

@@ -90,11 +90,12 @@ class Mit6837Parser(SceneBuilder):
         self.degenerate = 0
         self.first_degenerate: Optional[Tuple[int, int, str]] = None
         self._cur: List[Token] = []
+        cls = type(self)  # functions, called with self: bound methods would make a cycle
         self._handlers = {
-            "eye": self._camera_vector, "lookat": self._camera_vector, "up": self._camera_vector,
-            "fov": self._fov, "viewport": self._viewport, "background": self._background,
-            "light": self._light, "surface": self._surface, "sphere": self._sphere,
-            "triangles": self._triangles, "v": self._vertex, "f": self._face, "end": self._end,
+            "eye": cls._camera_vector, "lookat": cls._camera_vector, "up": cls._camera_vector,
+            "fov": cls._fov, "viewport": cls._viewport, "background": cls._background,
+            "light": cls._light, "surface": cls._surface, "sphere": cls._sphere,
+            "triangles": cls._triangles, "v": cls._vertex, "f": cls._face, "end": cls._end,
         }
 
     # ---- driving -----------------------------------------------------------------
@@ -134,7 +135,7 @@ class Mit6837Parser(SceneBuilder):
             self._error_tok(0, f"`{self._cmd}` inside the `triangles` block of line "
                                f"{self.block.line}; a block holds only `v`, `f` and `surface` "
                                f"lines (close it with `end`)")
-        handler()
+        handler(self)
 
     def _where(self, index: int) -> Tuple[int, int, str]:
         tok = self._cur[index]

@@ -842,3 +842,26 @@ class TestWarnings:
                    "triangle 0 0 0 0 0 0 0 0 0\nlight -1 1 1 ambient\n")
         assert [w.line for w in scene.warnings] == [2, 3, 4, 5, 6]
         assert all(w.severity is Severity.WARNING for w in scene.warnings)
+
+
+@pytest.mark.parametrize("text", [
+    "material 1 0 0 0.1 0.7 0.3 20 0 0 1\ntranslate 1 2 3\nsphere\npop\n"
+    "light 1 1 1 point 0 5 5\n",
+    "surface 1 0 0 0.1 0.7 0.3 20 0 0 1\nsphere 0 0 0 1\nlight 1 1 1 point 0 5 5\n",
+], ids=["comp575", "mit6837"])
+def test_a_parse_leaves_no_cycle_behind(text):
+    """The parser is not a cycle (its handlers are the class's functions, not bound methods):
+    a scene no longer referenced is freed at once, not at the next full collection (which,
+    until it came, kept each parse's whole scene and slowed the parses after it)."""
+    import gc
+    gc.collect()
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        scene = parse_text(text)
+        assert scene.objects
+        del scene
+        assert gc.collect() == 0
+    finally:
+        if was_enabled:
+            gc.enable()
