@@ -6,7 +6,9 @@ Two tables. The first, below. The second reads the scale ladder's scenes
 (``scale_bench.py``), whose every line is *simple* (a command word and its numbers, no
 comment): the spheres scene (six lines an object: its own material, scale, translate,
 sphere, two pops; the translations all distinct) against issue 31's target of 10^6 lines a
-second, and the triangles scene (one line of nine distinct numbers a triangle).
+second, and the triangles scene (one line of nine distinct numbers a triangle); then the
+MIT 6.837 dialect's: spheres each with its own ``surface`` (two lines an object), and one
+mesh block of ``v`` and ``f`` lines (a height field, two faces a vertex).
 
 The scene mixes every kind of line (objects, transforms with matching pops,
 materials, lights, comments, blank lines). The parser is linear when the time
@@ -32,6 +34,29 @@ from scale_bench import spheres, triangles
 
 #: Issue 31: simple lines read per second, at least.
 SIMPLE_TARGET = 1e6
+
+
+def mit_spheres(n: int) -> str:
+    """MIT 6.837: n spheres on a grid, each after a ``surface`` of its own colour."""
+    lines = ["eye 0 0 400", "light 1 1 1 point 5 5 5"]
+    for k in range(n):
+        lines.append(f"surface {0.3 + 0.7 * (k % 7) / 6:.3g} 0.5 0.5 0.1 0.7 0.3 20 0 0 1")
+        lines.append(f"sphere {k % 300} {k // 300} 0 0.4")
+    return "\n".join(lines) + "\n"
+
+
+def mit_mesh(n: int) -> str:
+    """MIT 6.837: one block of about n vertices on a height field and two faces a vertex."""
+    side = max(int(n ** 0.5), 2)
+    lines = ["eye 0 0 10", "light 1 1 1 point 5 5 5",
+             "surface 0.8 0.2 0.2 0.1 0.7 0.3 20 0 0 1", "triangles"]
+    lines += [f"v {i / side:.6f} {j / side:.6f} {((i * 7 + j * 13) % 17) / 170:.6f}"
+              for j in range(side) for i in range(side)]
+    for j in range(side - 1):
+        for i in range(side - 1):
+            a = j * side + i
+            lines += [f"f {a} {a + 1} {a + side + 1}", f"f {a} {a + side + 1} {a + side}"]
+    return "\n".join(lines + ["end"]) + "\n"
 
 BLOCK = """\
 # a block of 20 lines that leaves the stack as it found it
@@ -99,7 +124,8 @@ def main() -> None:
         previous = seconds
     print(f"\n{'simple lines':>22} {'lines':>9} {'seconds':>9} {'lines/s':>11}  target")
     for exponent in range(4, min(args.max_exponent, 5) + 1):
-        for name, family in (("spheres", spheres), ("triangles", triangles)):
+        for name, family in (("spheres", spheres), ("triangles", triangles),
+                             ("MIT spheres", mit_spheres), ("MIT mesh", mit_mesh)):
             text = family(10 ** exponent)
             lines = text.count("\n")
             seconds, scene = timed(parse_text, text, args.repeat)

@@ -71,13 +71,17 @@ def _material_plan(command: C.Command):
 _MATERIAL_PLANS = {C.MATERIAL_COMMAND[d]: _material_plan(C.command_table(d)[C.MATERIAL_COMMAND[d]])
                    for d in C.DIALECTS}
 
+#: The most distinct lines whose reading a bulk path remembers: a bound on the memory a file
+#: of distinct lines takes.
+KNOWN_LINES = 1 << 13
+
 #: Material and SceneObject built from all their fields, positionally (the bulk path's).
 make_material = maker(Material)
 make_object = maker(SceneObject)
 
 
 def _fast_material_plan(command: C.Command):
-    """What :meth:`SceneBuilder._material_fast` reads from the table: (a getter of the color's
+    """What :meth:`SceneBuilder._material_known` reads from the table: (a getter of the color's
     values, a getter of Material's seven scalar fields' values in its field order, the index
     of the ior operand in that order, whether the file holds its reciprocal)."""
     by_field = {o.field: k for k, o in enumerate(command.operands)}
@@ -115,6 +119,8 @@ class SceneBuilder:
         self.meshes: List[TriangleMesh] = []
         self.lights: List[Light] = []
         self.first_object_at: Optional[Tuple[int, int, str]] = None  # for the no-light warning
+        # the bulk paths' material lines: (fields, column) by line text (_material_known)
+        self.material_lines: Dict[str, tuple] = {}
         self._names = {name: command.names for name, command in self.table.items()}
         self._toks: List[str] = []
         self._cmd = ""
@@ -370,27 +376,30 @@ class SceneBuilder:
         self.materials.append(Material(color, index=len(self.materials),  # type: ignore[arg-type]
                                        line=ln, column=column, **fields))  # type: ignore[arg-type]
 
-    def _material_fast(self, values: Tuple[float, ...], ln: int, column: int) -> bool:
-        """The bulk path's material command (``self._cmd``, every operand already a finite
-        ASCII float, ``values``) at ``ln``:``column``: appended as :meth:`_material` would, and
-        True, when none of its checks can report anything (no operand negative, the ior
-        operand > 0 and the parameter it gives finite); otherwise False, nothing done (the
-        caller runs :meth:`_material`, which reports)."""
+    def _material_known(self, command: str, line: str, values: Tuple[float, ...]):
+        """What the bulk paths need of the material line ``line`` of ``command`` (``material``
+        or ``surface``; every operand a finite ASCII float, ``values``): (Material's fields
+        but its index, line and column, in field order; the command's column), as
+        :meth:`_material` would make them, when none of its checks can report anything (no
+        operand negative, the ior operand > 0 and the parameter it gives finite); otherwise
+        None (the caller runs :meth:`_material`, which reports). Remembered by the line's
+        text, for :data:`KNOWN_LINES` lines: a generated scene repeats its materials."""
         if min(values) < 0.0:  # a warning (negative color or mix) or an error (n, eta)
-            return False
-        color_of, scalars_of, ior_at, reciprocal = FAST_MATERIAL_PLANS[self._cmd]
+            return None
+        color_of, scalars_of, ior_at, reciprocal = FAST_MATERIAL_PLANS[command]
         scalars = scalars_of(values)
         ior = scalars[ior_at]
         if not ior > 0.0:
-            return False
+            return None
         if reciprocal:
             ior = 1.0 / ior
             if ior - ior != 0.0:  # its reciprocal overflows
-                return False
+                return None
             scalars = scalars[:ior_at] + (ior,) + scalars[ior_at + 1:]
-        materials = self.materials
-        materials.append(make_material(color_of(values), *scalars, len(materials), ln, column))
-        return True
+        known = (color_of(values),) + scalars, len(line) - len(line.lstrip(" \t")) + 1
+        if len(self.material_lines) < KNOWN_LINES:
+            self.material_lines[line] = known
+        return known
 
     # ---- the end -----------------------------------------------------------------
 

@@ -19,15 +19,13 @@ pop, and an object simply takes ``stack[-1]``.
 from __future__ import annotations
 
 import math
-from itertools import chain, compress, count, repeat
+from itertools import compress, count
 from operator import and_, eq, itemgetter, not_
 from typing import Dict, List, Optional, Tuple
 
-from fastnumbers import RAISE, try_float
-
+from raymitsuba.format import bulk
 from raymitsuba.format import commands as C
-from raymitsuba.format.builder import (FAST_MATERIAL_PLANS as MATERIAL_PLANS,
-                                       SceneBuilder, make_material, make_object)
+from raymitsuba.format.builder import KNOWN_LINES, SceneBuilder, make_material, make_object
 from raymitsuba.format.diagnostics import did_you_mean
 from raymitsuba.format.geometry import (apply, cross, magnitude_if_usable, rotated, scaled,
                                  translated)
@@ -42,12 +40,6 @@ _XYZ = ("x", "y", "z")
 _OBJECT_KINDS = {kind.value: kind for kind in ObjectKind}
 _CANONICAL = {name.lower(): name for name in C.COMMAND_NAMES[COMP575]}
 
-#: Lines per chunk of the bulk path (:meth:`Comp575Parser.run`): enough that the work per
-#: chunk vanishes, few enough that the chunk's lists stay small.
-CHUNK = 4096
-#: The most distinct lines whose reading the bulk path remembers (and composites of a
-#: transform of the identity): a bound on the memory a file of distinct lines takes.
-_KNOWN_LINES = 1 << 13
 #: The token count of each fixed-operand command's line, from the table (lower case keys).
 _NTOKS_GET = {name.lower(): 1 + len(command.operands)
               for name, command in C.COMP575_COMMANDS.items()}.get
@@ -56,7 +48,6 @@ _NTOKS_GET = {name.lower(): 1 + len(command.operands)
 _SOLIDS = frozenset({"sphere", "cylinder", "cone"})
 _TRANSFORMS = frozenset({"scale", "rotatex", "rotatey", "rotatez"})
 _HEAD = itemgetter(0)
-_OPERANDS = itemgetter(slice(1, None))
 #: What :func:`_read_lines` makes of a line without tokens, and of a line that is not simple.
 #: (Shaped as a simple line's reading, with a command word no line has: the hot loop of
 #: :meth:`Comp575Parser._carry_out` tells them apart only after the hot commands.)
@@ -72,11 +63,11 @@ def _read_lines(texts: List[str]) -> list:
     A line is simple when it is ASCII (``str.split`` then splits on exactly spaces and tabs,
     as the exact path), its command word is a fixed-operand command's, its token count that
     command's (:data:`raymitsuba.format.commands.COMP575_COMMANDS`), and every operand a
-    finite float literal, read to the bits ``float`` reads (see :func:`_operands`). A ``#``
+    finite float literal, read to the bits ``float`` reads (see :func:`raymitsuba.format.bulk.operands`). A ``#``
     comment never passes: ``#`` is in no command word and no number.
 
     The work is done for all the lines at once, in C loops (``map`` of ``str.split``, of
-    ``str.lower``, :func:`_operands`); only a bad number sends the lines through a loop of
+    ``str.lower``, :func:`~raymitsuba.format.bulk.operands`); only a bad number sends the lines through a loop of
     their own, which finds it. (Numbers too large to sum also do: the sum proves them finite.)
     """
     split = list(map(str.split, texts))
@@ -86,54 +77,25 @@ def _read_lines(texts: List[str]) -> list:
     if not all(map(str.isascii, texts)):
         ascii_ = compress(map(str.isascii, texts), split)
         simple = list(map(and_, simple, ascii_))
-    values = _operands(list(compress(words, simple)))
+    values = bulk.operands(list(compress(words, simple)))
     if values is not None and len(words) == len(texts) and all(simple):
         return list(zip(keys, words, values))  # the common case: every line simple
     finite = values is not None
     if not finite:
-        values = [v for v in map(_finite_operands, compress(words, simple))]
+        values = [v for v in map(bulk.finite_operands, compress(words, simple))]
     read = zip(compress(keys, simple), compress(words, simple), values)
     if not finite:
         read = (None if r[2] is None else r for r in read)
     simple_of = iter(simple)
     out = []
-    for toks in split:
-        if not toks:
-            out.append(_BLANK)
+    for toks, text in zip(split, texts):
+        if not toks:  # (str.split splits on Unicode spaces too; the exact path does not)
+            out.append(_BLANK if text.isascii() else _EXACT)
         elif next(simple_of):
             out.append(next(read) or _EXACT)
         else:
             out.append(_EXACT)
     return out
-
-
-def _operands(words: List[List[str]]) -> Optional[list]:
-    """The operands of each line's tokens ``words`` (the command word first) as a tuple of
-    floats, or None when one is not a finite float literal (or the sum of all overflows).
-
-    The numbers are read all at once, by ``fastnumbers.try_float`` (the fast_float algorithm,
-    correctly rounded: the bits ``float`` reads; it refuses what ``float`` refuses, and
-    refuses ``_`` in a number, which then takes the line-by-line path); the lines of one
-    token count share one flat list, regrouped into tuples by ``zip``.
-    """
-    counts = list(map(len, words))
-    tuples_of = {}
-    total = 0.0
-    try:
-        for n in set(counts):
-            if n == 1:
-                tuples_of[1] = repeat(())
-                continue
-            same = compress(words, map(eq, counts, repeat(n)))
-            flat = try_float(list(chain.from_iterable(map(_OPERANDS, same))), map=list,
-                             on_fail=RAISE)
-            total += sum(flat)
-            tuples_of[n] = zip(*[iter(flat)] * (n - 1))
-    except ValueError:  # a bad number somewhere
-        return None
-    if total - total != 0.0:
-        return None
-    return list(map(next, map(tuples_of.__getitem__, counts)))
 
 
 def _transform(key: str, composite: Matrix4, v: Tuple[float, ...]):
@@ -148,17 +110,6 @@ def _transform(key: str, composite: Matrix4, v: Tuple[float, ...]):
         pushed = rotated(composite, key[-1], v[0])
     magnitude = magnitude_if_usable(pushed)
     return None if magnitude is None else (pushed, magnitude)
-
-
-def _finite_operands(toks: List[str]) -> Optional[Tuple[float, ...]]:
-    """The operands of the tokens ``toks`` of one line as floats if every one is a finite float
-    literal, else None (the exact path reports)."""
-    try:
-        values = tuple(map(float, toks[1:]))
-    except ValueError:
-        return None
-    total = sum(values)
-    return values if total - total == 0.0 else None
 
 
 class Comp575Parser(SceneBuilder):
@@ -185,8 +136,6 @@ class Comp575Parser(SceneBuilder):
         self._line = ""
         self._known: Dict[str, object] = {}  # the bulk path's readings, by line text
         self._from_identity: Dict[str, Tuple[Matrix4, float]] = {}  # transform lines' composites
-        # a good material line's fields but its index and line number, by line text
-        self._material_lines: Dict[str, tuple] = {}
         # the handlers as functions of the class, called with self: a table of bound methods
         # would make the parser a cycle, its scene kept until a full collection
         cls = type(self)
@@ -213,11 +162,11 @@ class Comp575Parser(SceneBuilder):
     def run(self, lines: List[str]) -> Scene:
         """The scene of the decoded ``lines`` (see :func:`raymitsuba.format.lexer.decode`).
 
-        The bulk path (:attr:`fast_path`): the lines are read in chunks of :data:`CHUNK`; a
-        chunk's distinct lines not seen before are read at once (:func:`_read_lines`), each
-        line's reading is remembered by its text (:attr:`_known`, a generated scene repeats
-        its ``pop``, ``sphere`` and ``scale`` lines), and :meth:`_carry_out` carries the
-        chunk out. A line that is not *simple* goes to :meth:`_run_line`, the exact path, and
+        The bulk path (:attr:`fast_path`): the lines are read in chunks of
+        :data:`~raymitsuba.format.bulk.CHUNK`; a chunk's distinct lines not seen before are
+        read at once (:func:`_read_lines`), each line's reading is remembered by its text
+        (:attr:`_known`, a generated scene repeats its ``pop``, ``sphere`` and ``scale``
+        lines), and :meth:`_carry_out` carries the chunk out. A line that is not *simple* goes to :meth:`_run_line`, the exact path, and
         so does a simple line of a command whose checks could report something. Both paths
         give the same scene, the same diagnostics.
         """
@@ -226,13 +175,13 @@ class Comp575Parser(SceneBuilder):
                 self._run_line(ln, line)
             return self._finish()
         known = self._known
-        for start in range(0, len(lines), CHUNK):
-            chunk = lines[start:start + CHUNK]
+        for start in range(0, len(lines), bulk.CHUNK):
+            chunk = lines[start:start + bulk.CHUNK]
             found = list(map(known.get, chunk))
             if not all(found):  # a reading is never falsy: None is a line not seen before
                 fresh = list(dict.fromkeys(compress(chunk, map(not_, found))))
                 read = dict(zip(fresh, _read_lines(fresh)))
-                if len(known) < _KNOWN_LINES:
+                if len(known) < KNOWN_LINES:
                     known.update(read)
                 found = list(map(read.get, chunk, found))
             self._carry_out(lines, start + 1, found)
@@ -272,10 +221,7 @@ class Comp575Parser(SceneBuilder):
         objects, materials = self.objects, self.materials
         append = objects.append
         from_identity = self._from_identity
-        material_lines = self._material_lines
-        material_fields = material_lines.get
-        color_of, scalars_of, ior_at, reciprocal = MATERIAL_PLANS["material"]
-        assert not reciprocal  # COMP 575 holds eta itself
+        material_lines_get = self.material_lines.get
         for ln, (key, toks, v) in zip(count(first), found):
             # the hot commands, when they cannot report anything; else their handler
             if key == "pop":
@@ -321,7 +267,7 @@ class Comp575Parser(SceneBuilder):
                     pushed = from_identity.get(line)
                     if pushed is None:
                         pushed = _transform(key, IDENTITY, v)
-                        if pushed is not None and len(from_identity) < _KNOWN_LINES:
+                        if pushed is not None and len(from_identity) < KNOWN_LINES:
                             from_identity[line] = pushed
                 else:
                     pushed = _transform(key, stack[-1], v)
@@ -329,19 +275,11 @@ class Comp575Parser(SceneBuilder):
                     stack.append(pushed[0])
                     magnitudes.append(pushed[1])
                     continue
-            elif key == "material":  # SceneBuilder._material_fast, inlined
+            elif key == "material":
                 line = lines[ln - 1]
-                fields = material_fields(line)
-                if fields is None and min(v) >= 0.0:
-                    scalars = scalars_of(v)
-                    if scalars[ior_at] > 0.0:
-                        column = 1 if line[0] not in " \t" else \
-                            len(line) - len(line.lstrip(" \t")) + 1
-                        fields = (color_of(v),) + scalars, column
-                        if len(material_lines) < _KNOWN_LINES:
-                            material_lines[line] = fields
-                if fields is not None:
-                    materials.append(make_material(*fields[0], len(materials), ln, fields[1]))
+                known = material_lines_get(line) or self._material_known(key, line, v)
+                if known is not None:
+                    materials.append(make_material(*known[0], len(materials), ln, known[1]))
                     continue
             elif key == "triangle":
                 if self.first_object_at is not None and self._triangle_fast(v, ln):

@@ -17,15 +17,22 @@
   kept, so ``f 1 2 3 1`` is the triangle 1 2 3) and counted in one warning;
 * the camera's ``fov`` is horizontal (``Camera.fov_axis == "x"``), default 30, the
   eye defaults to 0 0 10, and ``viewport w h`` is the default image size.
+
+A bulk path carries out the simple ``v``, ``f``, ``sphere`` and ``surface`` lines of a large
+file without the token stream, in chunks (:meth:`Mit6837Parser.run`); it gives the same
+scene and diagnostics as the stream alone (``fast_path = False``).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from itertools import compress, islice
 from typing import List, Optional, Tuple
 
+from raymitsuba.format import bulk
 from raymitsuba.format import commands as C
-from raymitsuba.format.builder import SceneBuilder, number_problem
+from raymitsuba.format.builder import SceneBuilder, make_material, make_object, number_problem
 from raymitsuba.format.diagnostics import did_you_mean, fmt
 from raymitsuba.format.geometry import magnitude_if_usable, similarity
 from raymitsuba.format.lexer import COMP575, MIT6837, Token, stream_6837
@@ -56,6 +63,65 @@ def _reads_as_float(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+#: The bulk path's commands (their lines carried out in place, see Mit6837Parser.run), and
+#: the token count of each line of theirs; ``f`` takes 3 or more indices.
+_BULK_TOKENS = {"v": 4, "sphere": 5, "surface": 1 + len(C.MIT6837_COMMANDS["surface"].operands)}
+#: A line's reading when it is not simple (see _read_lines).
+_OTHER = (None, None, None)
+
+
+def _read_lines(texts: List[str], after: Optional[str]) -> list:
+    """How the bulk path reads each line of ``texts``, the next word after them (lower case)
+    being ``after`` (None: none): (command word in lower case, tokens, operands as floats or
+    None for ``f``) for a *self-contained simple* line, else :data:`_OTHER`.
+
+    Simple: ASCII, no comment (``#`` or ``/``), a ``v``, ``sphere`` or ``surface`` of its
+    token count (:data:`_BULK_TOKENS`) with finite float literals (the bits ``float``
+    reads), or an ``f`` of 3 or more operands. Self-contained: the next line with tokens
+    starts with a command word (or there is none), so the command takes no operand from
+    below. A line's first token ``#`` or ``/`` is no command word: the line before it is
+    left to the exact path, which reads the comment.
+    """
+    split = list(map(str.split, texts))
+    # (a line of Unicode spaces: no tokens for str.split, a token for the stream: "")
+    firsts = [toks[0].lower() if toks else (None if text.isascii() else "")
+              for toks, text in zip(split, texts)]
+    ends = []  # the first word of the next line with tokens, for each line
+    following = after
+    for word in reversed(firsts):
+        ends.append(following)
+        if word is not None:
+            following = word
+    ends.reverse()
+    simple = [word in _BULK_TOKENS or word == "f" for word in firsts]
+    simple = [s and (end is None or end in _COMMAND_WORDS) and "#" not in text
+              and "/" not in text and text.isascii()
+              and (len(toks) == _BULK_TOKENS[word] if word != "f" else len(toks) >= 4)
+              for s, end, text, toks, word in zip(simple, ends, texts, split, firsts)]
+    numeric = [s and word != "f" for s, word in zip(simple, firsts)]
+    values = iter(bulk.each_operands(list(compress(split, numeric))))
+    out = []
+    for is_simple, is_numeric, word, toks in zip(simple, numeric, firsts, split):
+        if not is_simple:
+            out.append(_OTHER)
+        elif is_numeric:
+            v = next(values)
+            out.append(_OTHER if v is None else (word, toks, v))
+        else:
+            out.append((word, toks, None))
+    return out
+
+
+def _next_word(lines: List[str], start: int) -> Optional[str]:
+    """The first word (lower case) of the first line with tokens from index ``start`` on;
+    None if there is none."""
+    for line in islice(lines, start, None):
+        toks = line.split(None, 1)
+        if toks:
+            return toks[0].lower()
+    return None
 
 
 def _fan(indices: List[int]) -> List[Tuple[int, int, int]]:
@@ -100,12 +166,100 @@ class Mit6837Parser(SceneBuilder):
 
     # ---- driving -----------------------------------------------------------------
 
+    #: Whether :meth:`run` takes the bulk path for simple lines (the tests compare it with the
+    #: token stream's path, ``fast_path = False``).
+    fast_path = True
+
     def run(self, lines: List[str]) -> Scene:
-        """The scene of the decoded ``lines`` (see :func:`raymitsuba.format.lexer.decode`)."""
+        """The scene of the decoded ``lines`` (see :func:`raymitsuba.format.lexer.decode`).
+
+        The bulk path (:attr:`fast_path`): the lines are read in chunks of
+        :data:`~raymitsuba.format.bulk.CHUNK` (:func:`_read_lines`); a *self-contained*
+        simple line (a ``v``, ``f``, ``sphere`` or ``surface`` line whose command ends on
+        it) is carried out by :meth:`_carry_out` where no check could report anything, and
+        every other line, in runs, by the token stream's exact path (:meth:`_run_exact`). A
+        run of other lines ends just before a simple line, whose first token starts a
+        command: no command is cut in two. Both paths give the same scene, the same
+        diagnostics.
+        """
         self.lines = lines
-        for command in self._commands(stream_6837(lines)):
-            self._dispatch(command)
+        if not self.fast_path:
+            self._run_exact(0, len(lines))
+            return self._finish()
+        pending = 0  # the first line (index) not carried out yet
+        for start in range(0, len(lines), bulk.CHUNK):
+            stop = min(start + bulk.CHUNK, len(lines))
+            pending = self._carry_out(start, _read_lines(lines[start:stop],
+                                                         _next_word(lines, stop)), pending)
+        self._run_exact(pending, len(lines))
         return self._finish()
+
+    def _run_exact(self, start: int, stop: int) -> None:
+        """The token stream's path over the lines of index ``start`` .. ``stop`` - 1."""
+        if start < stop:
+            for command in self._commands(stream_6837(self.lines[start:stop], start + 1)):
+                self._dispatch(command)
+
+    def _carry_out(self, start: int, found: list, pending: int) -> int:
+        """Carry out the lines of index ``start`` ..., read as ``found`` (:func:`_read_lines`),
+        the lines from index ``pending`` on being left so far to the exact path; returns the
+        first line left to it after them (a run of such lines goes on into the next chunk).
+
+        Before a simple line, the lines left before it are run (its first token starts a
+        command: no command is cut); then the line is carried out here when no check of its
+        command could report anything (a ``v`` or ``f`` in an open block, indices defined,
+        no degenerate fan triangle; a ``sphere`` outside a block with r > 0 and a usable
+        transform; a ``surface`` that :meth:`_material_known` takes; never the first object:
+        its position is noted there), else left to the exact path too."""
+        objects, materials = self.objects, self.materials
+        material_lines_get = self.material_lines.get
+        for index, (key, toks, v) in enumerate(found, start):
+            if key is None:  # not simple: left to the exact path, with the lines around it
+                continue
+            if pending < index:
+                self._run_exact(pending, index)
+                pending = index  # (this line too, unless it is carried out below)
+            block = self.block
+            if key == "v":
+                if block is None:
+                    continue
+                block.vertices.append(v)
+            elif key == "f":
+                if block is None:
+                    continue
+                try:
+                    indices = list(map(int, toks[1:]))  # (what int reads, float reads alike)
+                except ValueError:
+                    continue
+                if not (min(indices) >= 0 and max(indices) < len(block.vertices)):
+                    continue
+                fan = _fan(indices)
+                if not all(len(set(t)) == 3 for t in fan):  # degenerate: counted there
+                    continue
+                first, material, line = block.runs[-1]
+                if line == 0:  # the run's first face
+                    if self.first_object_at is None:
+                        continue
+                    block.runs[-1] = (first, material, index + 1)
+                block.faces.extend(fan)
+            elif key == "sphere":
+                if block is not None or self.first_object_at is None:
+                    continue
+                cx, cy, cz, r = v
+                if not 0.0 < r * (r * r) < math.inf:  # r > 0, its transform usable
+                    continue
+                objects.append(make_object(ObjectKind.SPHERE, similarity((cx, cy, cz), r),
+                                           len(materials) - 1, index + 1, None, None, None))
+            else:  # surface
+                line = self.lines[index]
+                known = material_lines_get(line) or self._material_known(key, line, v)
+                if known is None:
+                    continue
+                materials.append(make_material(*known[0], len(materials), index + 1, known[1]))
+                if block is not None:
+                    self._start_run()
+            pending = index + 1
+        return pending
 
     @staticmethod
     def _commands(tokens):

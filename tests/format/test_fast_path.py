@@ -17,7 +17,7 @@ import struct
 import pytest
 from hypothesis import given
 
-from raymitsuba.format import comp575, mit6837
+from raymitsuba.format import bulk
 from raymitsuba.format.comp575 import Comp575Parser
 from raymitsuba.format.mit6837 import Mit6837Parser
 from raymitsuba.format.parser import parse_text
@@ -63,9 +63,7 @@ def both(text, dialect="auto"):
 @pytest.fixture(autouse=True)
 def small_chunks(monkeypatch):
     """Chunks of 3 lines: every test meets chunk boundaries and remembered lines."""
-    monkeypatch.setattr(comp575, "CHUNK", 3)
-    if hasattr(mit6837, "CHUNK"):
-        monkeypatch.setattr(mit6837, "CHUNK", 3)
+    monkeypatch.setattr(bulk, "CHUNK", 3)
 
 
 def agree(text, dialect="auto"):
@@ -141,6 +139,7 @@ def test_bad_line_in_a_run_of_good_ones(bad, column, message):
     "translate\t1\t2\t3\nSPHERE\nsphere # c\nsphere #\n#sphere\nTranslate 1 2 3#\n",
     "translate 1 2 3 # the comment\nscale 1 2 3#4\nscale 1 2 #3\n",
     "translate 1\u00a02 3 4\nsphere\u2003\nsphere\n",  # Unicode spaces stay in a token
+    "\u00a0\n\u2028\nsphere\n",  # a line of a Unicode space only is a token, not blank
     "translate \uff11 2 3\n",
     "pop\nsphere\npop\n",  # pop on an empty stack
     "sphere\nsphere\nplane\ncheckerboard 2\nplane\nsphere\n",
@@ -190,7 +189,7 @@ def test_bulk_numbers_are_the_bits_float_reads(operands):
         expected = None
     if expected is not None and not all(math.isfinite(x) for v in expected for x in v):
         expected = None
-    got = comp575._operands(words)
+    got = bulk.operands(words)
     if got is None:  # refused: an underscore, or a sum that overflows; never a wrong value
         return
     assert expected is not None
@@ -234,3 +233,66 @@ def test_simple_lines_take_the_bulk_path(monkeypatch):
     scene = parse_text(GOOD * 4 + "sphere # a comment\n")
     assert len(scene.objects) == 16 + 1
     assert seen == [12, 24, 36, 48, 49]  # the lights and the comment
+
+
+# -- MIT 6.837 ------------------------------------------------------------------------------
+MESH = ("surface 0.8 0.2 0.1 0.1 0.7 0.3 20 0 0 1\nsphere 0 0 0 1\ntriangles\nv 0 0 0\nv 1 0 0\n"
+        "v 0 1 0\nv 1 1 0\nf 0 1 2\nf 1 3 2\nsurface 0.2 0.8 0.1 0.1 0.7 0.3 20 0 0 1\n"
+        "f 0 1 3 2\nend\nsphere 2 0 0 0.5\nlight 1 1 1 point 0 5 5\n")
+
+
+@pytest.mark.parametrize("text", [
+    MESH,
+    "sphere 1 2\n3 4\nsphere 0 0 0 1\n",  # operands across lines
+    "v 1 2 3\n4\ntriangles\nv 1 2 3\n4\nv 1 2 3\nend\n",
+    "triangles\nv 0 0 0\nv 1 0 0\n\n\nv 0 1 0\n  \nf 0 1 2\nend\n",  # blank lines between
+    "triangles\nv 0 0 0 # a comment\nv 1 0 0 / another\nv 0 1 0\n# f 0 1 2\nf 0 1 2\nend\n",
+    "v 1 2 3\nf 0 1 2\nend\n",  # outside a block
+    "triangles\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 3\nf -1 0 1\nf 0 1.5 2\nf 0 1e0 2\n"
+    "f 0 1_0 2\nf 0 1\nf 0 1 1\nf 0 1 2 0\nf 0 1 2 1 2\nend\n",  # indices, degenerate fans
+    "triangles\nv 0 0 0\nv 1 0 0\nv 0 1 0\nsphere 0 0 0 1\ntriangles\nf 0 1 2\nend\n",
+    "sphere 0 0 0 0\nsphere 0 0 0 -1\nsphere 0 0 0 1e200\nsphere 0 0 0 1e-200\n"
+    "sphere 1e308 1e308 1e308 1\nsphere 0 0 0 1\n",  # radius checks, sums that overflow
+    "sphere 0 0 0 nan\nsphere 0 0 0 inf\nsphere 0 0 0 0x1\nsphere 0 0 0 1 2\n",
+    "surface -1 0.2 0.1 0.1 0.7 0.3 20 0 0 1\nsurface 1 1 1 0.1 0.7 0.3 20 0 0 0\n"
+    "surface 1 1 1 0.1 0.7 0.3 20 0 0 1e-320\nsurface 1 1 1 0.1 0.7 0.3 -1 0 0 1\n"
+    "  \tsurface 1 1 1 0.1 0.7 0.3 20 0 0 0.666\nsphere 0 0 0 1\n",
+    "triangles\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",  # never closed
+    "SPHERE 0 0 0 1\nV 1 2 3\nTriangles\nV 0 0 0\nV 1 0 0\nV 0 1 0\nF 0 1 2\nEnd\n",
+    "viewport 64 48\neye 0 0 5\nsphere\t0\t0\t0\t1\r\nsphere 1 1 1 1\r\nlight 1 1 1 ambient\n",
+    "sph\u00e8re 0 0 0 1\nsphere 0 0 0 1\nv 1\u00a02 3\n",
+    "sphere 0 0 0 1\n\u00a0\nsphere 0 0 0 1\n\u00a04\nsphere 0 0 0 1\n\u2028\n",
+    "sphere 0 0 0 1\nmaterial 1 1 1 0.1 0.7 0.3 20 0 0 1\nsphere 0 0 0 1\nsurface 1 1 1\n",
+    "sphere 0 0 0 1\nsphere 0 0 0 1\nfoo\nsphere 0 0 0 1\n12\nsphere 0 0 0 1\n",
+])
+def test_mit_6837_edge_cases_agree(text):
+    agree(text * 2, "mit6837")
+    agree(text, "mit6837")
+    agree(text)
+
+
+@FUZZ
+@given(mesh_scenes())
+def test_mit_6837_mesh_scenes_agree(text):
+    agree(text, "mit6837")
+
+
+@FUZZ
+@given(st.lists(lines_6837(), max_size=12))
+def test_mit_6837_command_soups_agree(commands):
+    agree("\n".join(commands), "mit6837")
+
+
+def test_simple_mit_6837_lines_take_the_bulk_path(monkeypatch):
+    """Only the lines that are not simple reach the token stream's path: the camera, the
+    lights, a block's `triangles` and `end`, a comment, and each first object (noted there)."""
+    seen = []
+    exact = Mit6837Parser._run_exact
+    monkeypatch.setattr(Mit6837Parser, "_run_exact",
+                        lambda self, start, stop: (seen.extend(range(start + 1, stop + 1)),
+                                                   exact(self, start, stop)))
+    scene = parse_text(MESH * 3 + "sphere 5 5 5 1 # a comment\n")
+    assert len(scene.objects) == 7 and len(scene.meshes) == 6
+    first = [2, 3, 12, 14]  # the first sphere, `triangles`, `end`, the light
+    later = [14 * k + ln for k in (1, 2) for ln in (3, 12, 14)]
+    assert seen == first + later + [43, 44]  # the comment, the empty line after the last end
