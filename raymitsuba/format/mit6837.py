@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from itertools import compress, islice
+from itertools import compress
 from typing import List, Optional, Tuple
 
 from raymitsuba.format import bulk
@@ -117,8 +117,8 @@ def _read_lines(texts: List[str], after: Optional[str]) -> list:
 def _next_word(lines: List[str], start: int) -> Optional[str]:
     """The first word (lower case) of the first line with tokens from index ``start`` on;
     None if there is none."""
-    for line in islice(lines, start, None):
-        toks = line.split(None, 1)
+    for index in range(start, len(lines)):  # (islice would walk the lines before start)
+        toks = lines[index].split(None, 1)
         if toks:
             return toks[0].lower()
     return None
@@ -233,9 +233,15 @@ class Mit6837Parser(SceneBuilder):
                     continue
                 if not (min(indices) >= 0 and max(indices) < len(block.vertices)):
                     continue
-                fan = _fan(indices)
-                if not all(len(set(t)) == 3 for t in fan):  # degenerate: counted there
-                    continue
+                if len(indices) == 3:  # a triangle (_fan of it, at less cost)
+                    i, j, k = indices
+                    if i == j or j == k or i == k:  # degenerate: counted there
+                        continue
+                    fan = [(i, j, k)]
+                else:
+                    fan = _fan(indices)
+                    if not all(len(set(t)) == 3 for t in fan):  # degenerate: counted there
+                        continue
                 first, material, line = block.runs[-1]
                 if line == 0:  # the run's first face
                     if self.first_object_at is None:
