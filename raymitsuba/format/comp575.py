@@ -63,12 +63,14 @@ def _read_lines(texts: List[str]) -> list:
     A line is simple when it is ASCII (``str.split`` then splits on exactly spaces and tabs,
     as the exact path), its command word is a fixed-operand command's, its token count that
     command's (:data:`raymitsuba.format.commands.COMP575_COMMANDS`), and every operand a
-    finite float literal, read to the bits ``float`` reads (see :func:`raymitsuba.format.bulk.operands`). A ``#``
-    comment never passes: ``#`` is in no command word and no number.
+    finite float literal, read to the bits ``float`` reads
+    (:func:`raymitsuba.format.bulk.operands`). A ``#`` comment never passes: ``#`` is in no
+    command word and no number.
 
     The work is done for all the lines at once, in C loops (``map`` of ``str.split``, of
-    ``str.lower``, :func:`~raymitsuba.format.bulk.operands`); only a bad number sends the lines through a loop of
-    their own, which finds it. (Numbers too large to sum also do: the sum proves them finite.)
+    ``str.lower``, :func:`~raymitsuba.format.bulk.operands`); only a bad number sends the
+    lines through a loop of their own, which finds it. (Numbers too large to sum also do:
+    the sum proves them finite.)
     """
     split = list(map(str.split, texts))
     words = list(filter(None, split))
@@ -80,12 +82,10 @@ def _read_lines(texts: List[str]) -> list:
     values = bulk.operands(list(compress(words, simple)))
     if values is not None and len(words) == len(texts) and all(simple):
         return list(zip(keys, words, values))  # the common case: every line simple
-    finite = values is not None
-    if not finite:
-        values = [v for v in map(bulk.finite_operands, compress(words, simple))]
+    if values is None:  # a bad number: each line's own reading (None: it holds one)
+        values = list(map(bulk.finite_operands, compress(words, simple)))
     read = zip(compress(keys, simple), compress(words, simple), values)
-    if not finite:
-        read = (None if r[2] is None else r for r in read)
+    read = (None if r[2] is None else r for r in read)
     simple_of = iter(simple)
     out = []
     for toks, text in zip(split, texts):
@@ -166,9 +166,10 @@ class Comp575Parser(SceneBuilder):
         :data:`~raymitsuba.format.bulk.CHUNK`; a chunk's distinct lines not seen before are
         read at once (:func:`_read_lines`), each line's reading is remembered by its text
         (:attr:`_known`, a generated scene repeats its ``pop``, ``sphere`` and ``scale``
-        lines), and :meth:`_carry_out` carries the chunk out. A line that is not *simple* goes to :meth:`_run_line`, the exact path, and
-        so does a simple line of a command whose checks could report something. Both paths
-        give the same scene, the same diagnostics.
+        lines), and :meth:`_carry_out` carries the chunk out. A line that is not *simple*
+        goes to :meth:`_run_line`, the exact path, and so does a simple line of a command
+        whose checks could report something. Both paths give the same scene, the same
+        diagnostics.
         """
         if not self.fast_path:
             for ln, line in enumerate(lines, 1):
