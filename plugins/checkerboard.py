@@ -25,39 +25,121 @@ def checker(uv, size):
     return 1.0 - (cell - 2.0 * dr.floor(cell * 0.5))  # parity: exact on integers
 
 
-def checker_filtered(uv, size, duv_dx, duv_dy):
+def checker_filtered(uv, size, duv_dx, duv_dy, distortion=None):
     """The checkerboard averaged over a footprint: the pixel (or sub-pixel) of a sample,
-    whose edges map to the texture-space vectors ``duv_dx`` and ``duv_dy`` at ``uv``.
+    the square (s, t) in [-1/2, 1/2]^2 of its share of the pixel, which maps to
+
+        uv(s, t) = uv + (s duv_dx + t duv_dy) / (1 + s kx + t ky)
+
+    in texture space: the image of a square of the screen on a plane seen in perspective
+    (``duv_dx``, ``duv_dy``: the derivatives at the sample; ``distortion``: (kx, ky), the
+    relative rates at which the distance to the plane falls across the footprint, or
+    None: 0, a parallelogram).
 
     In square units x = u / s, y = v / s the board is (1 + q(x) q(y)) / 2 with q the square
-    wave (+1 on even squares, -1 on odd ones). Averaged over an axis-aligned box of
-    half-widths (wx, wy) that is exactly (1 + Q(x, wx) Q(y, wy)) / 2, Q the box average of
-    q: the difference of its integral, the triangle wave, at the box's two ends over its
-    width. The footprint is a parallelogram, long and slanted where a plane is seen at a
-    grazing angle: it is cut along its longer edge into up to SPLIT pieces no longer than
-    they are wide, and each piece is taken as the box of the same variance along each axis
-    (half-width sqrt(a^2 + b^2) / 2 for edges a, b; exact for an axis-aligned rectangle).
-    A footprint of width 0 gives :func:`checker`."""
+    wave (+1 on even squares, -1 on odd ones). The footprint is cut along its longer edge
+    into :func:`pieces` of equal share of the screen, each no longer than it is wide
+    and no more distorted along that edge than FIRST_ORDER (as far as SPLIT pieces go):
+    each piece is the parallelogram of its chord along that edge, between the images of
+    its two ends, and of the derivative along the other edge, about the image of its
+    middle; its average is the product of its averages along each axis. Along an axis a
+    piece of edges a, b spreads as the sum of two uniform offsets, of widths |a_x| and
+    |b_x|: a trapezoid, over which :func:`trapezoid_average` averages q exactly. The
+    product is exact for an axis-aligned rectangle and, for any piece, wherever one axis's
+    q is constant over it (along a single edge of the board). A footprint of width 0 gives
+    :func:`checker`; one that reaches past the horizon (not finite) 1/2, the board's mean;
+    one more distorted than MAX_DISTORTION is taken as if it were that distorted (an
+    average of many squares all the same; ``footprint_resolved`` tells them apart)."""
+    finite, count, averages = _piece_averages(uv, size, duv_dx, duv_dy, distortion)
+    total = sum(dr.select(inside, qx * qy, 0.0) for inside, qx, qy in averages)
+    return dr.select(finite, 0.5 * (1.0 + total / count), 0.5)
+
+
+def footprint_corner(uv, size, duv_dx, duv_dy, distortion=None):
+    """Bool: where a piece of :func:`checker_filtered`'s footprint holds a corner of the
+    board (a square's edges in both axes cross it: neither axis's average is +-1), where
+    the product of its two averages is not the exact average of a slanted piece. (The
+    same operations as checker_filtered's: in one kernel with it, computed once.)"""
+    _, _, averages = _piece_averages(uv, size, duv_dx, duv_dy, distortion)
+    corner = dr.zeros(dr.mask_t(uv.x), dr.width(uv.x))
+    for inside, qx, qy in averages:
+        corner |= inside & (dr.abs(qx) < 1.0 - CORNER_SHARE) & (dr.abs(qy) < 1.0 - CORNER_SHARE)
+    return corner
+
+
+def _piece_averages(uv, size, duv_dx, duv_dy, distortion):
+    """(finite, count, [(inside, qx, qy)]): whether the footprint is finite, how many pieces
+    it is cut into, and for each of SPLIT pieces whether it is one and the averages of q
+    over it along x and y (see :func:`checker_filtered`)."""
     inv = 1.0 / size
-    a, b = duv_dx * inv, duv_dy * inv
-    swap = dr.squared_norm(b) > dr.squared_norm(a)  # a: the longer edge
-    a, b = dr.select(swap, b, a), dr.select(swap, a, b)
-    ratio = dr.sqrt(dr.squared_norm(a) / dr.maximum(dr.squared_norm(b), 1e-30))
-    pieces = dr.clip(dr.ceil(ratio), 1.0, float(SPLIT))
-    piece = a / pieces
-    wx = 0.5 * dr.sqrt(dr.square(piece.x) + dr.square(b.x))
-    wy = 0.5 * dr.sqrt(dr.square(piece.y) + dr.square(b.y))
+    a, b, ka, kb = _longer_first(duv_dx * inv, duv_dy * inv, distortion)
+    finite = dr.isfinite(dr.squared_norm(a) + dr.squared_norm(b) + ka + kb)
+    a, b = dr.select(finite, a, 0.0), dr.select(finite, b, 0.0)
+    excess = dr.maximum(0.5 * (dr.abs(ka) + dr.abs(kb)) / MAX_DISTORTION, 1.0)
+    ka, kb = dr.select(finite, ka / excess, 0.0), dr.select(finite, kb / excess, 0.0)
+    count = pieces(a, b, ka)
     x0, y0 = uv.x * inv, uv.y * inv
-    total = dr.zeros(type(x0), dr.width(x0))
+    averages = []
     for k in range(SPLIT):
-        inside = k < pieces
-        shift = (k + 0.5) / pieces - 0.5
-        x, y = dr.fma(a.x, shift, x0), dr.fma(a.y, shift, y0)
-        total += dr.select(inside, box_average(x, wx) * box_average(y, wy), 0.0)
-    return 0.5 * (1.0 + total / pieces)
+        s0, s1 = k / count - 0.5, (k + 1.0) / count - 0.5
+        middle = 0.5 * (s0 + s1)
+        scale = dr.rcp(1.0 + ka * middle)
+        centre = a * (middle * scale)  # the image of (middle, 0)
+        chord = a * (s1 / (1.0 + ka * s1) - s0 / (1.0 + ka * s0))
+        across = (b - a * (middle * kb * scale)) * scale  # d uv / dt at (middle, 0)
+        wx = (0.5 * dr.abs(chord.x), 0.5 * dr.abs(across.x))  # the two spreads' half-widths
+        wy = (0.5 * dr.abs(chord.y), 0.5 * dr.abs(across.y))
+        averages.append((k < count, trapezoid_average(x0 + centre.x, *wx),
+                         trapezoid_average(y0 + centre.y, *wy)))
+    return finite, count, averages
 
 
 SPLIT = 8  # the most pieces a footprint is cut into (checker_filtered)
+# A piece holds a corner of the board where both its averages are within this of +-1 off it
+CORNER_SHARE = 1e-3
+# A piece of a footprint distorted by at most this much along its length is averaged as a
+# parallelogram (a taper of 2 %: its average off by a small share of an 8-bit step at a
+# checker edge; tests/plugins/test_checkerboard.py measures it)
+FIRST_ORDER = 0.02
+# The most distortion (|kx| + |ky|) / 2 a footprint may have: its far corner then at most
+# 2.5 times its centre's distance (a footprint that reaches the horizon is no footprint)
+MAX_DISTORTION = 0.6
+
+
+def _longer_first(a, b, distortion):
+    """(a, b, ka, kb): the footprint's edges, the longer first, with their distortions."""
+    ka, kb = (0.0, 0.0) if distortion is None else distortion
+    swap = dr.squared_norm(b) > dr.squared_norm(a)
+    return (dr.select(swap, b, a), dr.select(swap, a, b), dr.select(swap, kb, ka),
+            dr.select(swap, ka, kb))
+
+
+def pieces(a, b, ka):
+    """How many pieces a footprint of edges ``a`` (the longer) and ``b`` is cut into along
+    ``a``, whose distortion is ``ka``: enough for each to be no longer than it is wide and
+    distorted by at most FIRST_ORDER along it, at most SPLIT (Float, >= 1)."""
+    ratio = dr.sqrt(dr.squared_norm(a) / dr.maximum(dr.squared_norm(b), 1e-30))
+    return dr.clip(dr.ceil(dr.maximum(ratio, dr.abs(ka) * (1.0 / FIRST_ORDER))), 1.0,
+                   float(SPLIT))
+
+
+def footprint_resolved(duv_dx, duv_dy, distortion=None):
+    """Bool: where :func:`checker_filtered` averages the footprint: not a point (width 0),
+    finite, and short of the horizon (distortion at most MAX_DISTORTION)."""
+    long = dr.maximum(dr.squared_norm(duv_dx), dr.squared_norm(duv_dy))
+    resolved = (long > 0) & dr.isfinite(long)
+    if distortion is not None:
+        kx, ky = distortion
+        resolved &= 0.5 * (dr.abs(kx) + dr.abs(ky)) <= MAX_DISTORTION
+    return resolved
+
+
+def residual_distortion(duv_dx, duv_dy, distortion):
+    """How distorted the pieces of :func:`checker_filtered` still are, the most along
+    either edge (Float): where it exceeds FIRST_ORDER a grid of samples, each with its
+    share of it, averages the footprint instead (anti-aliasing, ``signature.grid_code``)."""
+    a, b, ka, kb = _longer_first(duv_dx, duv_dy, distortion)
+    return dr.maximum(dr.abs(ka) / pieces(a, b, ka), dr.abs(kb))
 
 
 def square_wave(x):
@@ -68,6 +150,35 @@ def square_wave(x):
 def triangle_wave(x):
     """The integral of ``square_wave`` from 0: 0 at even integers, 1 at odd ones."""
     return 1.0 - dr.abs(x - 2.0 * dr.floor(x * 0.5) - 1.0)
+
+
+def wave_second_integral(x):
+    """An integral of ``triangle_wave`` less its mean 1/2 (so periodic, of period 2):
+    z (1 - |z|) / 2 with z = (x mod 2) - 1."""
+    z = x - 2.0 * dr.floor(x * 0.5) - 1.0
+    return 0.5 * z * (1.0 - dr.abs(z))
+
+
+def trapezoid_average(x, w1, w2):
+    """The average of ``square_wave`` about ``x`` over the sum of two uniform offsets of
+    half-widths ``w1`` and ``w2`` (a trapezoid): the second difference of its second
+    integral, (S(x + w1 + w2) - S(x + w1 - w2) - S(x - w1 + w2) + S(x - w1 - w2)) / (4 w1
+    w2), S = :func:`wave_second_integral` (its linear part cancels). Where the narrower
+    spread is below TRAPEZOID_MIN (the second difference would lose to float32 round-off)
+    it is the box of the same variance, half-width sqrt(w1^2 + w2^2) (:func:`box_average`:
+    off near an edge by a share of the contrast that falls as the narrower spread does
+    against the wider)."""
+    wide, narrow = dr.maximum(w1, w2), dr.minimum(w1, w2)
+    exact = narrow > TRAPEZOID_MIN
+    n = dr.select(exact, narrow, 1.0)
+    x = x - 2.0 * dr.floor(x * 0.5)  # (the wave's period: small arguments, fewer bits lost)
+    second = (wave_second_integral(x + wide + n) - wave_second_integral(x + wide - n)
+              - wave_second_integral(x - wide + n) + wave_second_integral(x - wide - n))
+    return dr.select(exact, second / (4.0 * wide * n),
+                     box_average(x, dr.sqrt(dr.square(wide) + dr.square(narrow))))
+
+
+TRAPEZOID_MIN = 1e-2  # squares: the narrowest spread trapezoid_average takes exactly
 
 
 def box_average(x, w):

@@ -10,6 +10,8 @@ module             what it owns
 ``hits``           surface interactions by lookup in one geometry table
 ``lift``           where shadow rays leave smooth meshes near the terminator
 ``tree``           the ray tree, traced generation by generation
+``differentials``  a sample's footprint carried through mirror and glass bounces
+``signature``      a hash of what a sample's ray tree saw: one path or several
 ``replay``         a primal render's first-generation ray queries, replayed by its adjoint
 ``bailout``        which rays of the tree are not traced; the bound that makes it safe
 ``chunks``         which camera rays are traced together, within a budget; the probe

@@ -1,6 +1,20 @@
 """Adaptive anti-aliasing (the integrator's ``aa`` > 0): which pixels get more samples
 (decided on the host, detached), and how they are traced.
 
+0. *One path throughout* (``signature.py``, one sample per pixel): the first pass and the
+   corners (step 1) also give each sample's path signature, a hash of the surfaces its ray tree
+   hit, which lights lit them through which blockers, and its bounces. A pixel whose
+   centre, four corners and four neighbours' centres share one signature differs from
+   sample to sample only smoothly, and its first pass's value is its average (its
+   checkerboards averaged over the whole pixel's footprint, step 5): it is not refined
+   for its contrast. Where its footprint on a checkerboard is distorted by perspective
+   past what the filter takes as first order, or holds a corner of the board
+   (``checkerboard.residual_distortion``, ``footprint_corner``), it is traced with the
+   2 x 2 to 4 x 4 grid whose samples' footprints are (``signature.grid_code``), without
+   a probe. Silhouettes, shadows' edges, creases, a spotlight's cone, total internal
+   reflection and the same seen in mirrors and through glass change the signature: those
+   pixels go on as below. A subtree whose path weight is below the threshold does not
+   count (whatever it sees changes the sample by less).
 1. A first pass traces every pixel at the render's sampling (one sample: the centre),
    the plain image's pass, and one sample at each pixel *corner*: the (W + 1) x (H + 1)
    lattice of the pixels' corners (``camera.corner_rays``), each corner shared by the
@@ -9,7 +23,7 @@
    corners, however little of it it covers.
 2. A pixel whose five samples differ by more than the threshold (in some channel, linear
    values) is *refined*: it is traced again with a stratified n x n set of samples (the
-   centres of an n x n grid of strata). A detail thinner than a pixel that the centres
+   centres of an n x n grid of strata) -- unless they all followed one path (step 0). A detail thinner than a pixel that the centres
    miss is found where it crosses a corner. So is a pixel between two
    refined ones (opposite neighbours: above and below, left and right, or across a
    diagonal): in a region of detail finer than the samples (a checkerboard towards the
@@ -41,15 +55,20 @@
    directly); a point-sampled edge (a silhouette, a shadow, a reflection) makes the
    mean a mixture the centre's one value does not match, but by chance, which the
    probe's 16 samples and the tight ``SETTLE`` make rare. The pixels whose grid is the
-   probe's own are traced in the probe's job and always settled by it.
+   probe's own are traced in the probe's job and always settled by it. A pixel refined
+   for its neighbours whose own samples followed one path (step 0) is settled too where
+   all its probe's samples followed that path (``signature.one_path``): no detail of its
+   neighbours' reaches into it, short of a sixth of a pixel.
 
-5. A checkerboard seen directly is averaged over each sample's *footprint* (its share of
-   the pixel: the whole pixel for the first pass and the corners, 1/n of it for an n x n
-   grid), from the camera rays' differentials (``camera.sample``, ``hits.uv_footprint``,
-   ``checkerboard.checker_filtered``). Squares smaller than a pixel towards the horizon
-   are then a smooth grey rather than noise no affordable grid resolves: on the
-   benchmark's scene 97.7 % of the pixels come within 2/255 of a 256-sample render
-   (88.7 % with point samples), and fewer pixels need refining.
+5. A checkerboard is averaged over each sample's *footprint* (its share of the pixel: the
+   whole pixel for the first pass and the corners, 1/n of it for an n x n grid), from the
+   camera rays' differentials (``camera.sample``, ``hits.uv_footprint``,
+   ``checkerboard.checker_filtered``: the footprint as perspective maps it, not only its
+   first-order parallelogram), seen directly or in mirrors and through glass (the
+   differentials carried through each bounce, ``differentials.py``). Squares smaller than
+   a pixel towards the horizon, or crowding towards a mirror ball's rim, are then a smooth
+   grey rather than noise no affordable grid resolves, and the edges of larger squares
+   need no refinement at all (step 0).
 
 Each pixel's value is the box-filtered average of its samples: those of its grid if it
 is refined, its first pass's otherwise (the corners only decide). The choice depends only
@@ -74,6 +93,7 @@ from typing import NamedTuple
 import drjit as dr
 import numpy as np
 
+from . import signature
 from .camera import corner_rays, pixel_means
 from .chunks import Job
 
@@ -87,6 +107,9 @@ BETWEEN_PROBE = 6
 EDGE_PROBE = 4
 SETTLE = 0.25
 BAND = 1024  # rows compared at a time (bounded host memory on huge images)
+# The rows a band's first pass traces above and below it: a pixel between two refined ones
+# reads its neighbours' decisions, and each of these reads its own neighbours' paths (step 0)
+MARGIN = 2
 
 
 def contrast(image, corners):
@@ -147,17 +170,29 @@ class CornerJob:
                            footprint)
 
 
-def trace_corners(chunker, width, height, top, bottom):
-    """The values ((bottom - top + 1, W + 1, 3) float32) of the corners of the pixel rows
-    ``top`` .. ``bottom`` - 1, traced through ``chunker``."""
+def least_weight(threshold):
+    """The path weight below which a subtree does not count in a sample's path signature
+    (``Tracer.trace``'s ``signed``): the contrast ``threshold``. A subtree of radiance at
+    most 1 weighed by less changes its sample by less than the threshold, whatever it sees:
+    like a difference below the threshold, it does not make a pixel refined."""
+    return threshold
+
+
+def trace_corners(chunker, width, height, top, bottom, threshold):
+    """The values ((bottom - top + 1, W + 1, 3) float32) and path signatures ((bottom - top
+    + 1, W + 1) uint32, signature.py) of the corners of the pixel rows ``top`` .. ``bottom``
+    - 1, traced through ``chunker`` (``threshold``: the refinement's, see least_weight)."""
     job = CornerJob(width, height, top, bottom)
     values = np.empty((job.count, 3), np.float32)
+    signatures = np.empty(job.count, np.uint32)
 
-    def visit(start, count, color):
+    def visit(start, count, color, path):
         values[start:start + count] = dr.ravel(color).numpy().reshape(-1, 3)
+        signatures[start:start + count] = path.numpy()
 
-    chunker.run(job, visit)
-    return values.reshape(bottom - top + 1, width + 1, 3)
+    chunker.run(job, visit, signed=least_weight(threshold))
+    shape = (bottom - top + 1, width + 1)
+    return values.reshape(*shape, 3), signatures.reshape(shape)
 
 
 class Level(NamedTuple):
@@ -201,7 +236,8 @@ class Plan:
                         None) for level in self.levels]
 
 
-def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, rows=None):
+def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, rows=None,
+           signatures=None):
     """Refine the first pass ``image`` ((H, W, 3) float32, C-contiguous, traced at ``spp``
     samples per pixel) at the contrast ``threshold``: the pixel corners, then every level's
     pixels are traced by ``chunker`` (each job first admitted by the guards' ``estimate``)
@@ -209,18 +245,29 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
 
     A band: ``image`` holds the rows ``first_row`` .. ``first_row`` + H - 1 of an image of
     ``height`` rows (default: H, the whole image), and only the pixels of ``rows`` (top,
-    bottom) are refined (default: all of them). A band's rows need their neighbours' rows
-    above and below (where the image has them) for the neighbours' decisions: the
-    decisions, and so the values, are then those of the whole image's render."""
+    bottom) are refined (default: all of them). A band's rows need MARGIN rows above and
+    below (where the image has them) for the decisions: the decisions, and so the values,
+    are then those of the whole image's render.
+
+    ``signatures``: the first pass's path signatures ((H, W) uint32, signature.py), or
+    None: every pixel whose samples differ is refined."""
     band_height, width = image.shape[:2]
     height = height or band_height
     top, bottom = rows or (first_row, first_row + band_height)
     estimate.admit((width + 1) * (band_height + 1), 1)  # the corners
-    corners = trace_corners(chunker, width, height, first_row, first_row + band_height)
+    corners, corner_signatures = trace_corners(chunker, width, height, first_row,
+                                               first_row + band_height, threshold)
     values = image.reshape(-1, 3)
     spread = contrast(image, corners)
     del corners
     contrasted = spread > threshold
+    smooth = None
+    if signatures is not None:  # one path throughout: the differences are smooth (step 0)
+        same = signature.agree(signatures, corner_signatures)
+        smooth = np.where(contrasted & same, signature.grid_sides(signatures, corner_signatures),
+                          1)
+        contrasted &= ~same
+    del corner_signatures
     around = between(contrasted) & ~contrasted
     band = slice(top - first_row, bottom - first_row)
     refined = (contrasted | around)[band]
@@ -232,25 +279,42 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     sides = np.array([n for n, _ in GRIDS])
     levels = []
 
-    def probe(mask, side, settles):
+    def probe(mask, side, settles, by_path=None):
         """Trace the pixels of ``mask`` with a side x side grid; those ``settles(agree,
         flat, own)`` (bool arrays by pixel: the mean agrees with the first pass's value; the
-        samples with one another; the pixel's own grid is the probe's) take the probe's
-        value and are done."""
+        samples with one another; the pixel's own grid is the probe's), and those of
+        ``by_path`` (bool by pixel of the band, or None) whose probe's samples all followed
+        its centre's path (signature.one_path), take the probe's value and are done."""
         pixels = (np.flatnonzero(mask) + first).astype(np.uint32)
         if not len(pixels):
             return
         estimate.admit(len(pixels), side * side)
-        means, spread = trace_probe(chunker, Job(width, height, side * side, pixels=pixels))
+        signed = None if by_path is None else least_weight(threshold)
+        means, spread, paths = trace_probe(chunker, Job(width, height, side * side,
+                                                        pixels=pixels), signed)
         agree = np.abs(means - values[pixels - offset]).max(axis=-1) <= SETTLE * threshold
         done = settles(agree, spread <= threshold, sides[grid[pixels - first]] == side)
+        if paths is not None:
+            done |= by_path[pixels - first] & \
+                signature.one_path(signatures.ravel()[pixels - offset], paths)
         if done.any():
             values[pixels[done] - offset] = means[done]
             levels.append(Level(pixels[done], side))
             grid[pixels[done] - first] = -1
 
+    if smooth is not None:  # step 0: the grids the footprints need, no probe
+        smooth = np.where(around[band], 1, smooth[band]).ravel()
+        for n in range(2, signature.MAX_GRID + 1):
+            pixels = (np.flatnonzero(smooth == n) + first).astype(np.uint32)
+            if len(pixels):
+                estimate.admit(len(pixels), n * n)
+                trace_level(chunker, Job(width, height, n * n, pixels=pixels), values, offset)
+                levels.append(Level(pixels, n))
     around = around[band].ravel()
-    probe(around & (grid >= 0), BETWEEN_PROBE, lambda agree, flat, own: agree & flat)
+    # (a pixel between two refined ones whose own samples followed one path, and its probe's
+    # too, holds no detail its neighbours saw: their feature misses it by a sixth of a pixel)
+    probe(around & (grid >= 0), BETWEEN_PROBE, lambda agree, flat, own: agree & flat,
+          None if smooth is None else same[band].ravel())
     probe(~around & (grid >= 0) & (sides[grid] >= EDGE_PROBE), EDGE_PROBE,
           lambda agree, flat, own: own | (agree & ~flat))
     for k, (n, _) in enumerate(GRIDS):
@@ -272,18 +336,22 @@ def trace_level(chunker, job, values, offset=0):
     chunker.run(job, visit)
 
 
-def trace_probe(chunker, job):
+def trace_probe(chunker, job, signed=None):
     """Trace ``job``'s pixels through ``chunker``: ((count, 3) float32, each pixel's
     box-filtered value; (count,) float32, the largest difference in one channel between
-    two of its samples)."""
+    two of its samples; (count, spp) uint32, its samples' path signatures, with ``signed``
+    (``Tracer.trace``'s), else None)."""
     means = np.empty((job.count, 3), np.float32)
     spread = np.empty(job.count, np.float32)
+    paths = None if signed is None else np.empty((job.count, job.spp), np.uint32)
 
-    def visit(start, count, color):
+    def visit(start, count, color, path=None):
         means[start:start + count] = \
             dr.ravel(pixel_means(color, count, job.spp)).numpy().reshape(-1, 3)
         samples = dr.ravel(color).numpy().reshape(count, job.spp, 3)
         spread[start:start + count] = (samples.max(axis=1) - samples.min(axis=1)).max(axis=-1)
+        if path is not None:
+            paths[start:start + count] = path.numpy().reshape(count, job.spp)
 
-    chunker.run(job, visit)
-    return means, spread
+    chunker.run(job, visit, signed=signed)
+    return means, spread, paths

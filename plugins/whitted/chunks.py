@@ -120,9 +120,11 @@ class Chunker:
     def tree_rays(self, ad):
         return max(int(self.budget // (BYTES_PER_RAY_AD if ad else BYTES_PER_RAY)), MIN_CHUNK_RAYS)
 
-    def run(self, job, visit, ad=False, lazy=False, record=None, queries=None):
+    def run(self, job, visit, ad=False, lazy=False, record=None, queries=None, signed=None):
         """Trace ``job`` chunk by chunk; for each chunk call ``visit(start, count, color)``
-        with the camera rays' colors (one lane per camera ray, pixel-major). ``visit`` is
+        with the camera rays' colors (one lane per camera ray, pixel-major; ``signed``, not
+        None: ``visit(start, count, color, signature)``, with their path signatures, see
+        ``Tracer.trace``). ``visit`` is
         called with AD enabled when ``ad`` (and then the tree is sized for its graph);
         ``lazy``: the colors are handed over unevaluated (``Tracer.trace``); ``record``:
         optional callable(start, count) giving the ``first_hit`` hook of the chunk's trace;
@@ -134,12 +136,12 @@ class Chunker:
         while start < job.count:
             count = min(self._chunk_pixels(job, max_rays), job.count - start)
             trace, count = self._trace_within(job, start, count, ad, max_rays, lazy, record,
-                                              queries)
+                                              queries, signed)
             rays = sum(trace.rays_per_generation)
             self.rays_traced += rays
             self.rays_per_generation = trace.rays_per_generation
             self.ratio = max(rays / (count * job.spp), self.ratio)
-            visit(start, count, trace.color)
+            visit(start, count, trace.color, *(() if signed is None else (trace.signature,)))
             del trace
             start += count
             self.pixels_done += count
@@ -154,13 +156,13 @@ class Chunker:
         return pixels if self.max_pixels is None else min(pixels, self.max_pixels)
 
     def _trace_within(self, job, start, count, ad, max_rays, lazy=False, record=None,
-                      queries=None):
+                      queries=None, signed=None):
         """(The trace of the ``count`` pixels from ``start``, or of the first half of them,
         halved again until the tree holds at most ``max_rays`` rays; that count)."""
         while True:
             try:
                 return self._trace(job, start, count, ad, max_rays, lazy, record,
-                                   queries), count
+                                   queries, signed), count
             except TreeTooLarge:
                 if count == 1:
                     raise BudgetError(
@@ -169,7 +171,8 @@ class Chunker:
                         "a --bailout (e.g. 1e-3) or a larger --memory-budget") from None
                 count = max(count // 2, 1)
 
-    def _trace(self, job, start, count, ad, max_rays, lazy=False, record=None, queries=None):
+    def _trace(self, job, start, count, ad, max_rays, lazy=False, record=None, queries=None,
+               signed=None):
         if ad:  # terms of its own: each chunk's adjoint pass consumes its graph
             with dr.resume_grad():
                 terms = self.tracer.scene_terms(self.scene)
@@ -181,7 +184,7 @@ class Chunker:
         asked = None if queries is None else queries(start, count, terms)
         with dr.resume_grad(when=ad):
             return self.tracer.trace(self.scene, self._rays(job, start, count), terms,
-                                     max_rays, lazy, first_hit, asked)
+                                     max_rays, lazy, first_hit, asked, signed)
 
     def _rays(self, job, start, count):
         return job.rays(self.sensor, start, count, self.tracer.footprint)

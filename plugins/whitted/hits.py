@@ -402,24 +402,31 @@ class HitTable:
                                prim)
 
     def uv_footprint(self, si, ray, active):
-        """(duv_dx, duv_dy): the texture-space vectors from each mesh hit's uv to those where
-        the offset rays of ``ray`` (a RayDifferential3f) meet the hit face's plane: a
-        sample's footprint (zero off meshes)."""
+        """(duv_dx, duv_dy, (kx, ky)): each mesh hit's footprint in texture space, as
+        ``checkerboard.checker_filtered`` reads it, from where the offset rays of ``ray`` (a
+        RayDifferential3f, one footprint away) meet the hit face's plane: an offset ray at
+        distance t_k, the main ray at t, k = t / t_k - 1 (the distance falls as 1 / (1 + k s)
+        across the footprint, s in footprints), and the derivative of uv, (uv_k - uv) (1 +
+        k) (the image of the offset point being uv + duv / (1 + k)). Zero off meshes, and
+        where an offset ray meets the plane behind it or not at all (then k is infinite)."""
         shape_id = dr.reinterpret_array(mi.UInt32, si.shape)
         valid = active & (shape_id < self.size)
         kind = dr.gather(mi.UInt32, self.kind, shape_id, valid)
         mesh = valid & ((kind & MESH) != 0)
         if not self.has_meshes:
-            return mi.Vector2f(0.0), mi.Vector2f(0.0)
+            return mi.Vector2f(0.0), mi.Vector2f(0.0), (mi.Float(0.0), mi.Float(0.0))
         row = dr.gather(mi.UInt32, self.first, shape_id, mesh)
         vertex, (p0, p1, p2) = self.corners(row, si.prim_index, mesh)
         n = dr.cross(p1 - p0, p2 - p0)
-        footprint = []
+        t = dr.dot(n, p0 - ray.o) / dr.dot(n, ray.d)
+        derivatives, distortion = [], []
         for o, d in ((ray.o_x, ray.d_x), (ray.o_y, ray.d_y)):
-            t = dr.dot(n, p0 - o) / dr.dot(n, d)
-            uv = self.texcoords_at(kind, vertex, *barycentrics((p0, p1, p2), o + t * d), mesh)
-            footprint.append(dr.select(mesh, mi.Vector2f(uv - si.uv), 0.0))
-        return tuple(footprint)
+            t_k = dr.dot(n, p0 - o) / dr.dot(n, d)
+            uv = self.texcoords_at(kind, vertex, *barycentrics((p0, p1, p2), o + t_k * d), mesh)
+            k = dr.select(t_k > 0, t / t_k - 1.0, dr.inf)
+            derivatives.append(dr.select(mesh, mi.Vector2f(uv - si.uv) * (1.0 + k), 0.0))
+            distortion.append(dr.select(mesh, k, 0.0))
+        return derivatives[0], derivatives[1], tuple(distortion)
 
     def corners(self, row, prim_index, mesh):
         """(face vertex indices, positions) of each lane's hit face."""
@@ -499,14 +506,7 @@ class HitTable:
         t = dr.select(dr.abs(near - pi.t) <= dr.abs(far - pi.t), near, far)
         p = ray(t)
         center = dr.gather(mi.Point3f, self.center, row, sphere)
-        n = mi.Normal3f(dr.normalize(p - center))
-        columns = None
-        if self.has_ellipsoids:
-            ellipsoid = sphere & dr.gather(mi.Bool, self.ellipsoid, row, sphere)
-            columns = self.to_object_columns(row, sphere)
-            local = _linear(columns, p) + columns[3]
-            normal = mi.Vector3f(*(dr.dot(columns[i], local) for i in range(3)))  # W^T local
-            n = dr.select(ellipsoid, mi.Normal3f(dr.normalize(normal)), n)
+        n, columns = self.sphere_normal(row, p, center, sphere)
         if not self.uv:  # no uv used (see update)
             return t, p, n, mi.Point2f(0.0)
         columns = columns or self.to_object_columns(row, sphere)
@@ -518,6 +518,57 @@ class HitTable:
         phi = dr.atan2(local.y, local.x)
         phi = dr.select(phi < 0.0, phi + 2.0 * dr.pi, phi)
         return t, p, n, mi.Point2f(phi * dr.inv_two_pi, theta * dr.inv_pi)
+
+
+    def sphere_normal(self, row, p, center, sphere):
+        """(The outward unit normal at the point ``p`` of the sphere of row ``row``, centred
+        at ``center``: from the centre, or an ellipsoid's W^T W (p - c) for its
+        world-to-object transform W; the ellipsoids' columns of W, or None)."""
+        n = mi.Normal3f(dr.normalize(p - center))
+        if not self.has_ellipsoids:
+            return n, None
+        ellipsoid = sphere & dr.gather(mi.Bool, self.ellipsoid, row, sphere)
+        columns = self.to_object_columns(row, sphere)
+        local = _linear(columns, p) + columns[3]
+        normal = mi.Vector3f(*(dr.dot(columns[i], local) for i in range(3)))  # W^T local
+        return dr.select(ellipsoid, mi.Normal3f(dr.normalize(normal)), n), columns
+
+    def surface_key(self, si, active):
+        """UInt32: which part of its shape each lane hit, for its path signature
+        (signature.py): on a flat-shaded mesh its face's normal, to 2^-20 (the faces of one
+        plane, coplanar, are one surface; a crease between two faces is not), elsewhere
+        the primitive (a smooth mesh's face, a sphere set's sphere)."""
+        key = mi.UInt32(si.prim_index)
+        if not self.has_meshes:
+            return key
+        valid, kind, _ = self.entries(dr.reinterpret_array(mi.UInt32, si.shape), active)
+        flat = valid & ((kind & MESH) != 0) & ((kind & SMOOTH) == 0)
+        # (to 2^-20: the normals of coplanar faces differ in their last bits)
+        x, y, z = (mi.UInt32(mi.Int32(dr.round(dr.detach(c) * 1048576.0))) for c in si.n)
+        normal = (x * 0x9E3779B1) ^ (y * 0x85EBCA77) ^ (z * 0xC2B2AE3D)
+        return dr.select(flat, normal, key)
+
+    def normal_at(self, si, p, active):
+        """The shading normal of each lane's hit surface (``si``'s shape and primitive) at
+        ``p``, a point of the hit's tangent plane near ``si.p`` (ray differentials, see
+        differentials.py): a sphere's or ellipsoid's from its centre, a smooth mesh's face's
+        vertex normals interpolated at p's barycentrics, a flat face's own (``si.n``)."""
+        shape_id = dr.reinterpret_array(mi.UInt32, si.shape)
+        valid, kind, row = self.entries(shape_id, active)
+        n = mi.Normal3f(si.n)
+        if self.has_smooth:
+            smooth = valid & ((kind & MESH) != 0) & ((kind & SMOOTH) != 0)
+            vertex, corners = self.corners(row, si.prim_index, smooth)
+            b1, b2 = barycentrics(corners, p)
+            n0, n1, n2 = (dr.gather(mi.Vector3f, self.normals, v, smooth) for v in vertex)
+            interpolated = dr.fma(n2, b2, dr.fma(n1, b1, n0 * (1.0 - b1 - b2)))
+            n = dr.select(smooth, mi.Normal3f(dr.normalize(interpolated)), n)
+        if self.has_spheres:
+            sphere = valid & ((kind & SPHERE) != 0)
+            sphere_row = row + si.prim_index
+            center = dr.gather(mi.Point3f, self.center, sphere_row, sphere)
+            n = dr.select(sphere, self.sphere_normal(sphere_row, p, center, sphere)[0], n)
+        return n
 
 
 def _linear(columns, v):

@@ -210,8 +210,8 @@ class Whitted(mi.CppADIntegrator):
         ``rows``: optional (top, bottom): only the image's rows top .. bottom - 1, a band
         of (bottom - top, W, 3), the same values, bit for bit, as those rows of the whole
         image (a pixel's value does not depend on its chunk; with anti-aliasing the first
-        pass also traces the row above and below, whose samples decide the band's edge
-        rows). A band's render keeps no anti-aliasing plan (no adjoint pass follows it)."""
+        pass also traces the MARGIN rows above and below, whose samples decide the band's
+        edge rows). A band's render keeps no anti-aliasing plan (no adjoint pass follows it)."""
         with dr.suspend_grad():
             sensor, spp, width, height = self._setup(scene, sensor, spp)
             top, bottom = (0, height) if rows is None else rows
@@ -219,7 +219,8 @@ class Whitted(mi.CppADIntegrator):
                 raise ValueError(f"rows {top} .. {bottom - 1} are not within the image's "
                                  f"{height} rows")
             # the rows traced by the first pass: the band, with its neighbours' for --aa
-            lo, hi = (max(top - 1, 0), min(bottom + 1, height)) if self.aa > 0 else (top, bottom)
+            lo, hi = (max(top - antialias.MARGIN, 0), min(bottom + antialias.MARGIN, height)) \
+                if self.aa > 0 else (top, bottom)
             assemble = store is None or self.aa > 0
             # (on the device, the image is assembled there: the same memory)
             guards.check_image(width, hi - lo, self.memory_budget, assemble or on_device,
@@ -238,16 +239,22 @@ class Whitted(mi.CppADIntegrator):
                 self._recording(scene, sensor, spp, width, height, terms)
             keys = None if recording is None else \
                 self._keys(scene, sensor, spp, width, height, terms)
+            # the pixel centres' path signatures, which anti-aliasing compares with its corners'
+            signatures = np.empty(width * (hi - lo), np.uint32) \
+                if self.aa > 0 and spp == 1 else None
             first_pass(chunker, Job(width, height, spp, lo * width, width * (hi - lo)),
                        assemble_into(image) if assemble else
                        store if on_device else on_host(store),
                        None if recording is None else
                        lambda start, count, terms:
-                       recording.recorder((lo * width + start) * spp, count * spp), keys)
+                       recording.recorder((lo * width + start) * spp, count * spp), keys,
+                       signatures, antialias.least_weight(self.aa))
             self.recording, self.keys = recording, keys
             if self.aa > 0:
-                plan = antialias.refine(image.reshape(hi - lo, width, 3), spp, self.aa,
-                                        chunker, estimate, height, lo, (top, bottom))
+                plan = antialias.refine(
+                    image.reshape(hi - lo, width, 3), spp, self.aa, chunker, estimate, height,
+                    lo, (top, bottom),
+                    None if signatures is None else signatures.reshape(hi - lo, width))
                 self.plan = plan if rows is None else None
             self.stats = RenderStats(estimate, chunker.chunks_done, chunker.rays_traced,
                                      chunker.rays_per_generation)
@@ -400,18 +407,23 @@ def assemble_into(image):
                                                          values))
 
 
-def first_pass(chunker, job, store, queries=None, keys=None):
+def first_pass(chunker, job, store, queries=None, keys=None, signatures=None, least_weight=None):
     """Trace ``job`` through ``chunker``, each chunk's box-filtered pixels (a Float of count
     3 values, evaluated) handed to ``store(first_pixel, values)`` (``queries``: see
     ``Chunker.run``; ``keys``: a boundary.Boundary that records its samples' keys and
-    colors, or None)."""
-    def visit(start, count, color):
+    colors, or None; ``signatures``: a numpy uint32 array, by the job's pixel, that receives
+    each one's path signature (one sample per pixel; ``least_weight``: see
+    ``Tracer.trace``'s ``signed``), or None)."""
+    def visit(start, count, color, signature=None):
         if keys is not None:
             keys.collect(job, start, count, color)
         values = dr.ravel(pixel_means(color, count, job.spp))
         dr.eval(values)  # (launched, not waited for: the chunk's tree is freed)
         store(start, values)
+        if signature is not None:
+            signatures[start:start + count] = signature.numpy()
 
     chunker.run(job, visit, queries=queries,
-                record=None if keys is None else keys.recorder(job))
+                record=None if keys is None else keys.recorder(job),
+                signed=None if signatures is None else least_weight)
 

@@ -25,7 +25,8 @@ import mitsuba as mi
 
 from raymitsuba.util import no_cyclic_gc
 
-from . import bailout
+from . import bailout, signature
+from .differentials import offset_children
 from .hits import HitTable
 from .lift import lifted_point
 from .surfaces import NO_SLOT, SceneTerms, with_kt_derivative
@@ -59,6 +60,8 @@ class Generation:
 
     def __init__(self, local):
         self.local = local  # Color3f: L_local, or the background on a miss
+        self.signature = None  # UInt32: the lane's own hit's signature (signature.py), or None
+        self.path_weight = None  # Float, detached: the lanes' path weights, where tracked
         self.weight_r = None  # Float: the reflected child's weight (kr, + kt on total reflection)
         self.has_r = None  # Bool: whether the lane has a reflected child
         self.child_r = None  # UInt32: the reflected child's lane in the next generation
@@ -69,6 +72,17 @@ class Generation:
     @property
     def has_children(self):
         return self.child_r is not None
+
+    def subtree_signature(self, deeper, least_weight):
+        """This generation's path signatures given the next one's (None: no next one), in
+        which a child counts where its path weight exceeds ``least_weight``."""
+        if deeper is None or not self.has_children:
+            return self.signature
+        counts_r = self.has_r & (self.path_weight * dr.detach(self.weight_r) > least_weight)
+        counts_t = self.has_t & (self.path_weight * dr.detach(self.weight_t) > least_weight)
+        return signature.with_children(self.signature, (
+            (dr.gather(mi.UInt32, deeper, self.child_r, counts_r), counts_r),
+            (dr.gather(mi.UInt32, deeper, self.child_t, counts_t), counts_t)))
 
     def subtree_color(self, deeper):
         """This generation's colors given the colors of the next one (None: no next one)."""
@@ -82,8 +96,9 @@ class Step:
     """What one generation computes for its rays: the local colors and, unless it is
     the deepest, the children's weights and rays (reflected and refracted, per lane)."""
 
-    def __init__(self, local, hit, weights=None, rays=None):
+    def __init__(self, local, hit, weights=None, rays=None, signature=None):
         self.local, self.hit = local, hit
+        self.signature = signature  # UInt32: the hits' own signatures (signature.py), or None
         self.weight_r, self.weight_t = weights if weights else (None, None)
         self.reflected, self.refracted = rays if rays else (None, None)
 
@@ -93,6 +108,7 @@ class Trace(NamedTuple):
 
     color: mi.Color3f  # of each ray of the batch (one lane per ray), through its whole tree
     rays_per_generation: list  # how many rays each depth traced (the first: the batch)
+    signature: object = None  # UInt32: each ray's path signature (signature.py), if asked
 
 
 class TreeTooLarge(Exception):
@@ -121,7 +137,8 @@ class Tracer:
                  footprint=False):
         self.max_depth = max_depth  # bounces after the first generation
         # whether camera rays carry their samples' footprints (anti-aliasing): a checkerboard
-        # seen directly is then averaged over each sample's footprint (checker_filtered)
+        # seen directly, or in mirrors and through glass (their children carry them on:
+        # differentials.py), is then averaged over each sample's footprint (checker_filtered)
         self.footprint = footprint
         # secondary and shadow rays start this many ray epsilons off the surface (see spawn_ray)
         self.offset_scale = offset_scale
@@ -142,7 +159,8 @@ class Tracer:
         self.surfaces = terms.surfaces
         return terms
 
-    def trace(self, scene, ray, terms, max_rays=None, lazy=False, first_hit=None, queries=None):
+    def trace(self, scene, ray, terms, max_rays=None, lazy=False, first_hit=None, queries=None,
+              signed=None):
         """The :class:`Trace` of each ray of ``ray`` (one lane per ray) through its whole
         tree, with the scene's ``terms`` (from :meth:`scene_terms`). ``max_rays``: a tree of
         more rays than this raises :class:`TreeTooLarge` (None: no limit). ``lazy``: the
@@ -156,13 +174,18 @@ class Tracer:
         coherent)``: each ray's closest hit; ``shadow(scene, light, ray, active)``: the
         closest blocker of light number ``light``'s shadow rays), recorded or replayed
         (replay.py); None: the ray tracer, and an any-hit test for the shadow rays where
-        no ``first_hit`` wants their blockers."""
+        no ``first_hit`` wants their blockers. ``signed``: None, or the Trace has each ray's
+        path signature (signature.py; anti-aliasing's first pass) in which a subtree counts
+        where its path weight (the product of the kr / kt weights from the camera ray down
+        to it) exceeds ``signed``."""
         # (no kr or kt > 0: one generation, no child to bail out; the bound reads the lights'
         # colors on the host, which waits for every kernel queued)
         limits = None if not terms.surfaces.any_specular else \
             bailout.path_weight_limits(self.bailout, terms, self.max_depth,
                                        self.max_shadow_crossings)
-        path_weight = None if limits is None else mi.Float(1.0)
+        # (signed: the path weights tell which subtrees count in a signature; no bailout, no
+        # limit: every child of weight > 0 is traced, as without them)
+        path_weight = None if limits is None and signed is None else mi.Float(1.0)
         generations, rays_per_generation = [], []
         if self.geometry_ad is not None:  # hook (issue 13): the camera keys' derivatives
             ray = self.geometry_ad.camera_rays(ray)
@@ -171,55 +194,83 @@ class Tracer:
             # (no kr or kt > 0 in the scene: no ray has a child, the tree is one generation)
             last = depth == self.max_depth or not terms.surfaces.any_specular
             step = self.step(scene, terms, ray, depth, not last,
-                             *((first_hit, queries) if depth == 0 else ()))
+                             *((first_hit, queries) if depth == 0 else (None, None)), signed)
             generation = Generation(step.local)
+            generation.signature, generation.path_weight = step.signature, path_weight
             generations.append(generation)
             if last:
                 break
             # The limit is data, not a constant of the kernels: a new value compiles nothing.
-            limit = None if limits is None else dr.opaque(mi.Float, limits[depth])
+            limit = None if path_weight is None else \
+                dr.opaque(mi.Float, -1.0 if limits is None else limits[depth])
             ray, path_weight = self.spawn(generation, step, path_weight, limit)
             if ray is None:
                 break
             if max_rays is not None and sum(rays_per_generation) + dr.width(ray) > max_rays:
                 raise TreeTooLarge(depth + 1, dr.width(ray), rays_per_generation)
 
-        color = None
+        color = path = None
         for generation in reversed(generations):
             color = generation.subtree_color(color)
+            if signed is not None:
+                # (data, not a constant of the kernels: a new threshold compiles nothing)
+                path = generation.subtree_signature(path, dr.opaque(mi.Float, signed))
             if not (lazy and generation is generations[0]):
-                dr.eval(color)  # once for all three channels: the next step gathers from each
-        return Trace(color, rays_per_generation)
+                dr.eval(color, path)  # once for all channels: the next step gathers from each
+        return Trace(color, rays_per_generation, path)
 
-    def step(self, scene, terms, ray, depth, children, first_hit=None, queries=None):
+    def step(self, scene, terms, ray, depth, children, first_hit=None, queries=None,
+             signed=None):
         """Intersect and shade ``ray``; with ``children``, also the children's weights and rays
-        (``first_hit``, ``queries``: see :meth:`trace`)."""
+        (``first_hit``, ``queries``, ``signed``: see :meth:`trace`)."""
         si = self.intersect(scene, terms.geometry, ray, coherent=(depth == 0), queries=queries)
         hit = si.is_valid()
         surfaces = terms.surfaces
         slot = surfaces.slot(si.shape, si.prim_index, hit)
-        duv = None  # a camera sample's footprint in texture space, for the checkerboard
-        if isinstance(ray, mi.RayDifferential3f) and surfaces.layout.checker_size is not None \
-                and terms.geometry.supported:
-            duv = terms.geometry.uv_footprint(si, ray, hit)
-        color = surfaces.base_color(si, slot, hit, duv)
+        footprint = None  # a sample's footprint in texture space, for the checkerboard
+        footprints = self.carries_footprints(ray, terms)
+        if footprints:
+            footprint = terms.geometry.uv_footprint(si, ray, hit)
+        color = surfaces.base_color(si, slot, hit, footprint)
         shadows = None if first_hit is None else []
-        local = self.shade(scene, terms, si, slot, color, ray, shadows, queries)
+        codes = None if signed is None else []  # the lights' codes of the hits' signatures
+        local = self.shade(scene, terms, si, slot, color, ray, shadows, queries, codes)
         local = dr.select(hit, local, terms.background)
         if first_hit is not None:
             first_hit(si, ray, hit, shadows)
+        own = None if signed is None else self.signature(terms, si, slot, footprint, codes)
         if not children:
-            return Step(local, hit)
+            return Step(local, hit, signature=own)
         kr = surfaces.get("reflectivity", slot, hit)
         kt = surfaces.get("refractivity", slot, hit)
         eta = surfaces.get("ior", slot, hit)
         v = -ray.d
         n = self.facing_normal(si, ray)
         entering = dr.dot(si.n, ray.d) < 0
-        refracted_d, tir = refract(v, n, dr.select(entering, dr.rcp(eta), eta))
+        eta_ratio = dr.select(entering, dr.rcp(eta), eta)
+        refracted_d, tir = refract(v, n, eta_ratio)
         weights = (kr + dr.select(tir, kt, 0.0), dr.select(tir, 0.0, kt))
         rays = (self.spawn_ray(si, reflect(v, n)), self.spawn_ray(si, refracted_d))
-        return Step(local, hit, weights, rays)
+        if footprints:  # the children carry their footprints on (see differentials.py)
+            rays = offset_children(ray, si, n, eta_ratio, rays, terms.geometry.normal_at, hit,
+                                   reflect, refract)
+        return Step(local, hit, weights, rays, own)
+
+    def signature(self, terms, si, slot, footprint, codes):
+        """The signature of each lane's own hit (signature.py): its surface, the lights'
+        ``codes``, whether a texture was read at a point, and the grid a checkerboard's
+        ``footprint`` (or None) needs where it is distorted."""
+        hit = si.is_valid()
+        sampled, distortion = terms.surfaces.texture_detail(si.uv, slot, hit, footprint)
+        return signature.local(hit, si.shape, self.surface_key(terms.geometry, si, hit), codes,
+                               sampled, signature.grid_code(distortion))
+
+    def carries_footprints(self, ray, terms):
+        """Whether the rays ``ray`` carry their samples' footprints that a checkerboard is
+        averaged over (anti-aliasing's rays, ray differentials, in a scene with a
+        checkerboard whose geometry the table knows)."""
+        return isinstance(ray, mi.RayDifferential3f) and \
+            terms.surfaces.layout.checker_size is not None and terms.geometry.supported
 
     def spawn_ray(self, si, d):
         """A ray leaving the hit ``si`` along ``d``: Mitsuba's ``si.spawn_ray``, its origin
@@ -256,15 +307,21 @@ class Tracer:
         return scene.ray_intersect(ray, ray_flags=mi.RayFlags.AllNonDifferentiable,
                                    coherent=coherent)
 
+    def surface_key(self, geometry, si, hit):
+        """Which part of its shape each lane hit, for its signature (``HitTable.surface_key``;
+        the primitive for a shape the table does not know)."""
+        return geometry.surface_key(si, hit) if geometry.supported else mi.UInt32(si.prim_index)
+
     def facing_normal(self, si, ray):
         """The shading normal flipped to the side the ray comes from."""
         n = si.sh_frame.n
         return dr.select(dr.dot(n, ray.d) > 0, -n, n)
 
-    def shade(self, scene, terms, si, slot, color, ray, shadows=None, queries=None):
+    def shade(self, scene, terms, si, slot, color, ray, shadows=None, queries=None, codes=None):
         """L_local at each hit: ambient term plus each light's shadowed Phong term
         (``shadows``: a list that receives each light's shadow blocker, ``queries``: who
-        finds it; see transmittance)."""
+        finds it; see transmittance; ``codes``: a list that receives each light's code of
+        the hit's signature, ``signature.light_code``)."""
         hit = si.is_valid()
         surfaces, lights = terms.surfaces, terms.direct
         result = terms.ambient * surfaces.get("ambient_mix", slot, hit) * color
@@ -282,6 +339,8 @@ class Tracer:
                 (lambda ray, active, j=j: queries.shadow(scene, j, ray, active))
             transmittance = self.transmittance(scene, surfaces, si, wi, dist, active, lifted,
                                                shadows, blocker)
+            if codes is not None:
+                codes.append(signature.light_code(active, transmittance, intensity))
             phong = phong_local(n, v, wi, color, kd, ks, exponent)
             result += dr.select(active, intensity * phong * transmittance, 0.0)
         return result
@@ -368,8 +427,8 @@ class Tracer:
             paths = (path_r, path_t)
         # One evaluation of everything the step computed: one kernel intersects and shades
         # (evaluated apart, the path weights would need that work done twice).
-        dr.eval(generation.local, weight_r, weight_t, has_r, has_t, step.reflected, step.refracted,
-                *paths)
+        dr.eval(generation.local, generation.signature, weight_r, weight_t, has_r, has_t,
+                step.reflected, step.refracted, *paths)
         index_r, index_t = dr.compress(has_r), dr.compress(has_t)
         count_r, count_t = dr.width(index_r), dr.width(index_t)
         if count_r + count_t == 0:
@@ -392,7 +451,16 @@ class Tracer:
                            dr.gather(mi.Point3f, reflected.o, parent))
         direction = dr.select(is_t, dr.gather(mi.Vector3f, refracted.d, parent),
                               dr.gather(mi.Vector3f, reflected.d, parent))
+        children = mi.Ray3f(origin, direction)
+        if isinstance(reflected, mi.RayDifferential3f):  # their footprints too
+            children = mi.RayDifferential3f(children)
+            for name, kind in (("o_x", mi.Point3f), ("o_y", mi.Point3f), ("d_x", mi.Vector3f),
+                               ("d_y", mi.Vector3f)):
+                setattr(children, name,
+                        dr.select(is_t, dr.gather(kind, getattr(refracted, name), parent),
+                                  dr.gather(kind, getattr(reflected, name), parent)))
+            children.has_differentials = True
         if path_weight is not None:
             path_weight = dr.select(is_t, dr.gather(mi.Float, path_t, parent),
                                     dr.gather(mi.Float, path_r, parent))
-        return mi.Ray3f(origin, direction), path_weight
+        return children, path_weight

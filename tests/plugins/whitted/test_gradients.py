@@ -204,18 +204,37 @@ def typed(mi, value_type, x):
 
 def weighted_sum(loaded, weights):
     """f = sum(w * image), rendered without gradients, summed in float64 on the host."""
+    return float(np.sum(weights * rendered(loaded)))
+
+
+def rendered(loaded):
+    """The image, rendered without gradients, as float64."""
     import drjit as dr
     import raymitsuba
 
     with dr.suspend_grad():
-        image = raymitsuba.render(loaded).numpy().astype(np.float64)
-    return float(np.sum(weights * image))
+        return raymitsuba.render(loaded).numpy().astype(np.float64)
 
 
-def derivatives(mi, loaded, key, seed, use_forward=False):
+def refinement(loaded):
+    """(H, W) int: the grid side each pixel's value came from in the last anti-aliased
+    render (0: its first pass)."""
+    height, width = loaded.options.height, loaded.options.width
+    side = np.zeros(height * width, int)
+    for level in loaded.integrator.plan.levels:
+        side[level.pixels] = level.n
+    return side.reshape(height, width)
+
+
+def derivatives(mi, loaded, key, seed, use_forward=False, same_refinement=False):
     """(finite difference, reverse mode, forward mode) derivatives of the weighted image sum
     along a random unit direction in the parameter's space (along (1, ..., 1) with
-    ``use_forward``: the tangent that ``dr.forward(param)`` seeds)."""
+    ``use_forward``: the tangent that ``dr.forward(param)`` seeds).
+
+    ``same_refinement`` (anti-aliasing): only the pixels that the renders at x -+ h refine
+    alike count (weight 0 on the others, for every derivative). Which pixels are refined
+    is a detached decision, a step of the image where a pixel's contrast crosses the
+    threshold between x - h and x + h: a finite difference across it is not a derivative."""
     import drjit as dr
     import raymitsuba
 
@@ -236,10 +255,13 @@ def derivatives(mi, loaded, key, seed, use_forward=False):
 
     h = 1e-3 * max(np.linalg.norm(x0), 1.0)
     set_value(x0 + h * u)
-    f_plus = weighted_sum(loaded, weights)
+    image_plus = rendered(loaded)
+    plan_plus = refinement(loaded) if same_refinement else None
     set_value(x0 - h * u)
-    f_minus = weighted_sum(loaded, weights)
-    finite = (f_plus - f_minus) / (2.0 * h)
+    image_minus = rendered(loaded)
+    if same_refinement:
+        weights = weights * (refinement(loaded) == plan_plus)[..., None]
+    finite = (np.sum(weights * image_plus) - np.sum(weights * image_minus)) / (2.0 * h)
 
     w = mi.TensorXf(weights.astype(np.float32))
     # Reverse mode.
