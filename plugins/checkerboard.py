@@ -50,48 +50,47 @@ def checker_filtered(uv, size, duv_dx, duv_dy, distortion=None):
     :func:`checker`; one that reaches past the horizon (not finite) 1/2, the board's mean;
     one more distorted than MAX_DISTORTION is taken as if it were that distorted (an
     average of many squares all the same; ``footprint_resolved`` tells them apart)."""
-    finite, count, averages = _piece_averages(uv, size, duv_dx, duv_dy, distortion)
-    total = sum(dr.select(inside, qx * qy, 0.0) for inside, qx, qy in averages)
-    return dr.select(finite, 0.5 * (1.0 + total / count), 0.5)
+    return filtered_board(uv, size, duv_dx, duv_dy, distortion)[0]
 
 
-def footprint_corner(uv, size, duv_dx, duv_dy, distortion=None):
-    """Bool: where a piece of :func:`checker_filtered`'s footprint holds a corner of the
-    board (a square's edges in both axes cross it: neither axis's average is +-1), where
-    the product of its two averages is not the exact average of a slanted piece. (The
-    same operations as checker_filtered's: in one kernel with it, computed once.)"""
-    _, _, averages = _piece_averages(uv, size, duv_dx, duv_dy, distortion)
-    corner = dr.zeros(dr.mask_t(uv.x), dr.width(uv.x))
-    for inside, qx, qy in averages:
-        corner |= inside & (dr.abs(qx) < 1.0 - CORNER_SHARE) & (dr.abs(qy) < 1.0 - CORNER_SHARE)
-    return corner
+def filtered_board(uv, size, duv_dx, duv_dy, distortion=None):
+    """(value, corner): :func:`checker_filtered`'s value, and whether a piece of the
+    footprint holds a corner of the board (a square's edges in both axes cross it: neither
+    axis's average is +-1), where the product of its two averages is not the exact average
+    of a slanted piece. The pieces are a loop, each lane running its own count (most
+    footprints are one or two pieces); detached: the footprint is a filter's, its
+    derivative is not computed (anti-aliasing, whose rays carry footprints, refuses the
+    keys that move the geometry)."""
+    with dr.suspend_grad():
+        uv, size = dr.detach(uv), dr.detach(size)
+        inv = 1.0 / size
+        a, b, ka, kb = _longer_first(dr.detach(duv_dx) * inv, dr.detach(duv_dy) * inv,
+                                     None if distortion is None else dr.detach(distortion))
+        finite = dr.isfinite(dr.squared_norm(a) + dr.squared_norm(b) + ka + kb)
+        a, b = dr.select(finite, a, 0.0), dr.select(finite, b, 0.0)
+        excess = dr.maximum(0.5 * (dr.abs(ka) + dr.abs(kb)) / MAX_DISTORTION, 1.0)
+        ka, kb = dr.select(finite, ka / excess, 0.0), dr.select(finite, kb / excess, 0.0)
+        count = pieces(a, b, ka)
+        x0, y0 = uv.x * inv, uv.y * inv
+        one = 1.0 - CORNER_SHARE
 
+        def body(k, total, corner):
+            s0, s1 = k / count - 0.5, (k + 1.0) / count - 0.5
+            middle = 0.5 * (s0 + s1)
+            scale = dr.rcp(1.0 + ka * middle)
+            centre = a * (middle * scale)  # the image of (middle, 0)
+            chord = a * (s1 / (1.0 + ka * s1) - s0 / (1.0 + ka * s0))
+            across = (b - a * (middle * kb * scale)) * scale  # d uv / dt at (middle, 0)
+            # the piece's averages along each axis: two spreads each, of these half-widths
+            qx = trapezoid_average(x0 + centre.x, 0.5 * dr.abs(chord.x), 0.5 * dr.abs(across.x))
+            qy = trapezoid_average(y0 + centre.y, 0.5 * dr.abs(chord.y), 0.5 * dr.abs(across.y))
+            return k + 1.0, total + qx * qy, corner | ((dr.abs(qx) < one) & (dr.abs(qy) < one))
 
-def _piece_averages(uv, size, duv_dx, duv_dy, distortion):
-    """(finite, count, [(inside, qx, qy)]): whether the footprint is finite, how many pieces
-    it is cut into, and for each of SPLIT pieces whether it is one and the averages of q
-    over it along x and y (see :func:`checker_filtered`)."""
-    inv = 1.0 / size
-    a, b, ka, kb = _longer_first(duv_dx * inv, duv_dy * inv, distortion)
-    finite = dr.isfinite(dr.squared_norm(a) + dr.squared_norm(b) + ka + kb)
-    a, b = dr.select(finite, a, 0.0), dr.select(finite, b, 0.0)
-    excess = dr.maximum(0.5 * (dr.abs(ka) + dr.abs(kb)) / MAX_DISTORTION, 1.0)
-    ka, kb = dr.select(finite, ka / excess, 0.0), dr.select(finite, kb / excess, 0.0)
-    count = pieces(a, b, ka)
-    x0, y0 = uv.x * inv, uv.y * inv
-    averages = []
-    for k in range(SPLIT):
-        s0, s1 = k / count - 0.5, (k + 1.0) / count - 0.5
-        middle = 0.5 * (s0 + s1)
-        scale = dr.rcp(1.0 + ka * middle)
-        centre = a * (middle * scale)  # the image of (middle, 0)
-        chord = a * (s1 / (1.0 + ka * s1) - s0 / (1.0 + ka * s0))
-        across = (b - a * (middle * kb * scale)) * scale  # d uv / dt at (middle, 0)
-        wx = (0.5 * dr.abs(chord.x), 0.5 * dr.abs(across.x))  # the two spreads' half-widths
-        wy = (0.5 * dr.abs(chord.y), 0.5 * dr.abs(across.y))
-        averages.append((k < count, trapezoid_average(x0 + centre.x, *wx),
-                         trapezoid_average(y0 + centre.y, *wy)))
-    return finite, count, averages
+        zero = dr.zeros(type(x0), dr.width(x0))
+        _, total, corner = dr.while_loop((zero, zero, dr.zeros(dr.mask_t(x0), dr.width(x0))),
+                                         lambda k, total, corner: k < count, body,
+                                         label="checker pieces")
+        return dr.select(finite, 0.5 * (1.0 + total / count), 0.5), finite & corner
 
 
 SPLIT = 8  # the most pieces a footprint is cut into (checker_filtered)

@@ -9,7 +9,7 @@
    checkerboards averaged over the whole pixel's footprint, step 5): it is not refined
    for its contrast. Where its footprint on a checkerboard is distorted by perspective
    past what the filter takes as first order, or holds a corner of the board
-   (``checkerboard.residual_distortion``, ``footprint_corner``), it is traced with the
+   (``checkerboard.residual_distortion``, ``filtered_board``), it is traced with the
    2 x 2 to 4 x 4 grid whose samples' footprints are (``signature.grid_code``), without
    a probe. Silhouettes, shadows' edges, creases, a spotlight's cone, total internal
    reflection and the same seen in mirrors and through glass change the signature: those

@@ -41,8 +41,8 @@ import numpy as np
 from .arrays import jit_array
 from .hits import HitTable, shape_ids
 from .protocol import SURFACE_PARAMETERS, SurfaceSet, check_emitter, check_surface
-from ..checkerboard import (FIRST_ORDER, checker, checker_filtered, footprint_corner,
-                            footprint_resolved, residual_distortion)
+from ..checkerboard import (FIRST_ORDER, checker, filtered_board, footprint_resolved,
+                            residual_distortion)
 
 NO_SLOT = 0xFFFFFFFF  # a slot index that names no surface (e.g. an unused crossing record)
 # Every table has at least this many rows: Dr.Jit folds a gather from a one-element array
@@ -344,12 +344,13 @@ class Surfaces:
         """The float parameter ``name`` of each lane's slot."""
         return dr.gather(mi.Float, getattr(self, name), slot, active)
 
-    def base_color(self, si, slot, active, footprint=None):
+    def base_color(self, si, slot, active, footprint=None, corners=None):
         """C at each hit: the material's color times the surface's image textures (in
         order), times its checkerboard; ``footprint``: (duv_dx, duv_dy, distortion), each
         sample's footprint in texture space (anti-aliasing's rays, ``HitTable.uv_footprint``),
-        over which the checkerboard is averaged (``checker_filtered``), or None: its value
-        at the point."""
+        over which the checkerboard is averaged (``filtered_board``), or None: its value
+        at the point; ``corners``: a list that receives where the footprint holds a corner
+        of the board (Bool; with a footprint on a checkered scene), or None."""
         layout = self.layout
         color = dr.gather(mi.Color3f, self.color, slot, active)
         for texture_of_slot in layout.texture_of_slot:
@@ -361,17 +362,22 @@ class Surfaces:
             size = dr.gather(mi.Float, layout.checker_size, slot, active)
             mask = active & (size > 0)
             size = dr.select(mask, size, 1.0)
-            board = checker(si.uv, size) if footprint is None else \
-                checker_filtered(si.uv, size, *footprint)
+            if footprint is None:
+                board = checker(si.uv, size)
+            else:
+                board, corner = filtered_board(si.uv, size, *footprint)
+                if corners is not None:
+                    corners.append(mask & corner)
             color = dr.select(mask, color * board, color)
         return color
 
-    def texture_detail(self, uv, slot, active, footprint=None):
-        """(Bool, Float): where :meth:`base_color` reads a texture at the hit point ``uv`` only (an
+    def texture_detail(self, slot, active, footprint=None, corner=None):
+        """(Bool, Float): where :meth:`base_color` reads a texture at the hit point only (an
         image texture, or a checkerboard without a ``footprint``, or with one that
         ``footprint_resolved`` refuses: off the table's meshes, towards the horizon), which
         anti-aliasing cannot take for its pixel's average (``signature.py``); and how
-        distorted the checkerboard's footprint still is (``residual_distortion``; 0 off
+        distorted the checkerboard's footprint still is (``residual_distortion``, or where
+        it holds a ``corner`` of the board, base_color's, as if by twice FIRST_ORDER; 0 off
         checkerboards), which asks for a grid of smaller footprints."""
         layout = self.layout
         sampled, distortion = mi.Bool(False), mi.Float(0.0)
@@ -384,11 +390,10 @@ class Surfaces:
             else:
                 sampled |= board & ~footprint_resolved(*footprint)
                 distortion = residual_distortion(*footprint)
-                # (a board's corner: the footprint's average is not exact there, a 2 x 2 grid
-                # of quarter footprints, each with its share of the error, is)
-                size = dr.gather(mi.Float, layout.checker_size, slot, active)
-                corner = footprint_corner(uv, dr.select(board, size, 1.0), *footprint)
-                distortion = dr.maximum(distortion, dr.select(corner, 2.0 * FIRST_ORDER, 0.0))
+                if corner is not None:  # (the footprint's average is not exact there; a 2 x 2
+                    # grid of quarter footprints, each with a quarter of the error, is)
+                    distortion = dr.maximum(distortion,
+                                            dr.select(corner, 2.0 * FIRST_ORDER, 0.0))
                 distortion = dr.select(board, distortion, 0.0)
         return sampled, distortion
 

@@ -231,14 +231,16 @@ class Tracer:
         footprints = self.carries_footprints(ray, terms)
         if footprints:
             footprint = terms.geometry.uv_footprint(si, ray, hit)
-        color = surfaces.base_color(si, slot, hit, footprint)
+        corners = None if signed is None or footprint is None else []  # (for the signature)
+        color = surfaces.base_color(si, slot, hit, footprint, corners)
         shadows = None if first_hit is None else []
         codes = None if signed is None else []  # the lights' codes of the hits' signatures
         local = self.shade(scene, terms, si, slot, color, ray, shadows, queries, codes)
         local = dr.select(hit, local, terms.background)
         if first_hit is not None:
             first_hit(si, ray, hit, shadows)
-        own = None if signed is None else self.signature(terms, si, slot, footprint, codes)
+        own = None if signed is None else \
+            self.signature(terms, si, slot, footprint, codes, corners[0] if corners else None)
         if not children:
             return Step(local, hit, signature=own)
         kr = surfaces.get("reflectivity", slot, hit)
@@ -256,12 +258,13 @@ class Tracer:
                                    reflect, refract)
         return Step(local, hit, weights, rays, own)
 
-    def signature(self, terms, si, slot, footprint, codes):
+    def signature(self, terms, si, slot, footprint, codes, corner=None):
         """The signature of each lane's own hit (signature.py): its surface, the lights'
         ``codes``, whether a texture was read at a point, and the grid a checkerboard's
-        ``footprint`` (or None) needs where it is distorted."""
+        ``footprint`` (or None) needs where it is distorted or holds a ``corner`` of the
+        board (Bool, or None)."""
         hit = si.is_valid()
-        sampled, distortion = terms.surfaces.texture_detail(si.uv, slot, hit, footprint)
+        sampled, distortion = terms.surfaces.texture_detail(slot, hit, footprint, corner)
         return signature.local(hit, si.shape, self.surface_key(terms.geometry, si, hit), codes,
                                sampled, signature.grid_code(distortion))
 
