@@ -273,6 +273,10 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     refined = (contrasted | around)[band]
     # a pixel refined for its neighbours holds detail its own samples missed: the finest grid
     grid = np.where(around[band], len(GRIDS) - 1, grid_of(spread[band], threshold))
+    if smooth is not None:  # step 0: the grids the footprints need (traced with the others')
+        smooth = np.where(around, 1, smooth)[band]
+        refined |= smooth > 1
+        grid = np.where(smooth > 1, np.searchsorted([n for n, _ in GRIDS], smooth), grid)
     grid = np.where(refined, grid, -1).astype(np.int8).ravel()  # (-1: done, or not refined)
     first = top * width  # the band's first pixel
     offset = first_row * width  # the first pixel of ``values``
@@ -302,14 +306,6 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
             levels.append(Level(pixels[done], side))
             grid[pixels[done] - first] = -1
 
-    if smooth is not None:  # step 0: the grids the footprints need, no probe
-        smooth = np.where(around[band], 1, smooth[band]).ravel()
-        for n in range(2, signature.MAX_GRID + 1):
-            pixels = (np.flatnonzero(smooth == n) + first).astype(np.uint32)
-            if len(pixels):
-                estimate.admit(len(pixels), n * n)
-                trace_level(chunker, Job(width, height, n * n, pixels=pixels), values, offset)
-                levels.append(Level(pixels, n))
     around = around[band].ravel()
     # (a pixel between two refined ones whose own samples followed one path, and its probe's
     # too, holds no detail its neighbours saw: their feature misses it by a sixth of a pixel)
