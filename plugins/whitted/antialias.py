@@ -23,10 +23,10 @@
    corners, however little of it it covers.
 2. A pixel whose five samples differ by more than the threshold (in some channel, linear
    values) is *refined*: it is traced again with a stratified n x n set of samples (the
-   centres of an n x n grid of strata) -- unless they all followed one path (step 0). A detail thinner than a pixel that the centres
-   miss is found where it crosses a corner. So is a pixel between two
-   refined ones (opposite neighbours: above and below, left and right, or across a
-   diagonal): in a region of detail finer than the samples (a checkerboard towards the
+   centres of an n x n grid of strata) -- unless they all followed one path (step 0). A
+   detail thinner than a pixel that the centres miss is found where it crosses a corner.
+   So is a pixel between two refined ones (opposite neighbours: above and below, left
+   and right, or across a diagonal): in a region of detail finer than the samples (a checkerboard towards the
    horizon) some pixels' five samples agree by chance, and a wire thinner than the
    samples' spacing is found in some pixels along it and missed in others, while no pixel
    beside a straight edge has two opposite refined neighbours. Such a pixel gets the

@@ -519,7 +519,6 @@ class HitTable:
         phi = dr.select(phi < 0.0, phi + 2.0 * dr.pi, phi)
         return t, p, n, mi.Point2f(phi * dr.inv_two_pi, theta * dr.inv_pi)
 
-
     def sphere_normal(self, row, p, center, sphere):
         """(The outward unit normal at the point ``p`` of the sphere of row ``row``, centred
         at ``center``: from the centre, or an ellipsoid's W^T W (p - c) for its

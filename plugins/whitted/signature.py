@@ -9,15 +9,20 @@ textures: a checkerboard averaged over the sample's footprint (``checker_filtere
 smooth as well; one point sampled, or an image texture, is not.
 
 The signature of a ray tree is a hash of, at each of its hits, the surface (shape and
-primitive, or a flat face's plane) and, for each light, whether it lights the point and the transmittance of its
-shadow ray (a product of the kt of the surfaces crossed: the same surfaces crossed, the
-same bits); of a miss, :data:`MISS`; mixed with its children's signatures, each where the
-child exists. Its top bit, :data:`POINT_SAMPLED`, is set where some hit of the tree read a
-texture at a point: such a tree's samples may differ with no change of signature.
+primitive, or a flat face's plane) and, for each light, whether it lights the point and
+the transmittance of its shadow ray (a product of the kt of the surfaces crossed: the
+same surfaces crossed, the same bits); of a miss, :data:`MISS`; mixed with its children's
+signatures, each where the child exists and its path weight is above the tracer's cut
+(``Tracer.trace``'s ``signed``). The hash is the low 29 bits. The top bit,
+:data:`POINT_SAMPLED`, is set where some hit of the tree read a texture at a point: such
+a tree's samples may differ with no change of signature. Bits 29 and 30
+(:data:`GRID_BITS`) hold the finest grid the tree's checkerboard footprints need, where
+perspective distorts them past first order or they hold a corner of the board
+(:func:`grid_code`).
 
-Two samples of equal signatures without that bit saw the same surfaces, lit by the same
+Two samples of equal hashes without POINT_SAMPLED saw the same surfaces, lit by the same
 lights through the same blockers, and differ only smoothly (``antialias.py`` reads this).
-Different trees could share a signature by a hash collision: one in 2^31.
+Different trees could share a hash by a collision: one in 2^29.
 """
 
 import drjit as dr

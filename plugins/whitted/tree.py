@@ -240,7 +240,7 @@ class Tracer:
         if first_hit is not None:
             first_hit(si, ray, hit, shadows)
         own = None if signed is None else \
-            self.signature(terms, si, slot, footprint, codes, corners[0] if corners else None)
+            self.hit_signature(terms, si, slot, footprint, codes, corners[0] if corners else None)
         if not children:
             return Step(local, hit, signature=own)
         kr = surfaces.get("reflectivity", slot, hit)
@@ -258,7 +258,7 @@ class Tracer:
                                    reflect, refract)
         return Step(local, hit, weights, rays, own)
 
-    def signature(self, terms, si, slot, footprint, codes, corner=None):
+    def hit_signature(self, terms, si, slot, footprint, codes, corner=None):
         """The signature of each lane's own hit (signature.py): its surface, the lights'
         ``codes``, whether a texture was read at a point, and the grid a checkerboard's
         ``footprint`` (or None) needs where it is distorted or holds a ``corner`` of the
