@@ -89,15 +89,17 @@ def check_image(width, height, memory_budget, assemble=True, corners=False):
     """Refuse (BudgetError) a ``width`` x ``height`` image whose output buffer cannot be
     held: too many values for one image or, when the image is ``assemble``d on the host,
     more memory than is available besides one chunk's ``memory_budget`` (with
-    ``corners``: also the anti-aliasing's values at the pixel corners)."""
+    ``corners``: also the anti-aliasing's values and path signatures at the pixel corners,
+    and its centres' signatures)."""
     if width * height * 3 >= 1 << 32:
         raise BudgetError(f"{width} x {height} is too large for one image "
                           "(over 2^32 values); render it in tiles with a smaller size")
     if not assemble:
         return
     need = width * height * 3 * 4 * 2  # the float32 image (and its copy as a tensor)
-    if corners:  # float32 values at the (W + 1) x (H + 1) corners
-        need += (width + 1) * (height + 1) * 3 * 4
+    if corners:  # float32 values and uint32 signatures at the (W + 1) x (H + 1) corners,
+        # uint32 signatures at the pixels (signature.py)
+        need += (width + 1) * (height + 1) * (3 + 1) * 4 + width * height * 4
     available = available_memory()
     if available is not None and need + min(memory_budget, available // 2) > available:
         raise BudgetError(f"a {width} x {height} float image needs {need / GIB:.1f} GB "
