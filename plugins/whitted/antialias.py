@@ -271,16 +271,17 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     around = between(contrasted) & ~contrasted
     band = slice(top - first_row, bottom - first_row)
     refined = (contrasted | around)[band]
+    sides = np.array([n for n, _ in GRIDS])  # each entry's grid side
     # a pixel refined for its neighbours holds detail its own samples missed: the finest grid
     grid = np.where(around[band], len(GRIDS) - 1, grid_of(spread[band], threshold))
-    if smooth is not None:  # step 0: the grids the footprints need (traced with the others')
+    if smooth is not None:  # step 0: the grids the footprints need, traced in the same jobs
+        # as the others' (a 4 x 4 one is the edge probe's own grid, which it settles)
         smooth = np.where(around, 1, smooth)[band]
         refined |= smooth > 1
-        grid = np.where(smooth > 1, np.searchsorted([n for n, _ in GRIDS], smooth), grid)
+        grid = np.where(smooth > 1, np.searchsorted(sides, smooth), grid)
     grid = np.where(refined, grid, -1).astype(np.int8).ravel()  # (-1: done, or not refined)
     first = top * width  # the band's first pixel
     offset = first_row * width  # the first pixel of ``values``
-    sides = np.array([n for n, _ in GRIDS])
     levels = []
 
     def probe(mask, side, settles, by_path=None):
