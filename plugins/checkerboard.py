@@ -9,8 +9,9 @@ so that the material's base color C times it gives C and black squares, as the
 format says. :func:`checker` is the one implementation of this formula: the
 Whitted integrator calls it with each hit's square size gathered from its surface
 table, and this texture's ``eval`` with its own. :func:`checker_filtered` is its average
-over a sample's footprint, which anti-aliasing's camera rays use (``--aa``; a plain
-render keeps the value at the point).
+over a sample's footprint as perspective maps it (:func:`filtered_board`: also whether the
+footprint holds a corner of the board), which anti-aliasing's rays use, from the camera
+and through mirrors and glass (``--aa``; a plain render keeps the value at the point).
 
 Parameters: ``size`` (float, > 0): the side s of a square, in the plane's object space.
 """
