@@ -8,7 +8,8 @@ image is the same, bit for bit, however it is split.
 
 **Memory.** A chunk's ray tree is bounded by a number of rays, ``budget /
 BYTES_PER_RAY`` (``BYTES_PER_RAY_AD`` when the chunk is traced with AD, which keeps every
-generation's graph for the adjoint pass; both in ``guards.py``): the tracer raises
+generation's graph for the adjoint pass; FOOTPRINT_FACTOR times that for anti-aliasing's
+rays, which carry their footprints: ``guards.bytes_per_ray``): the tracer raises
 ``TreeTooLarge`` before a generation would take the tree past it, and the chunk is then
 traced again in halves. A chunk also holds at most ``MAX_CHUNK_LANES`` camera rays (see
 there). How many pixels a chunk holds follows the largest number of rays
@@ -31,7 +32,7 @@ import mitsuba as mi
 import numpy as np
 
 from .camera import camera_rays
-from .guards import BYTES_PER_RAY, BYTES_PER_RAY_AD, GIB, BudgetError, timed
+from .guards import GIB, BudgetError, bytes_per_ray, timed
 from .tree import TreeTooLarge
 
 MIN_CHUNK_RAYS = 1 << 12
@@ -118,7 +119,7 @@ class Chunker:
         self.rays_per_generation = []  # of the chunk traced last: how many rays each depth traced
 
     def tree_rays(self, ad):
-        return max(int(self.budget // (BYTES_PER_RAY_AD if ad else BYTES_PER_RAY)), MIN_CHUNK_RAYS)
+        return max(int(self.budget // bytes_per_ray(ad, self.tracer.footprint)), MIN_CHUNK_RAYS)
 
     def run(self, job, visit, ad=False, lazy=False, record=None, queries=None, signed=None):
         """Trace ``job`` chunk by chunk; for each chunk call ``visit(start, count, color)``

@@ -36,6 +36,11 @@ from raymitsuba.options import GIB
 # encoder's copy of it and Dr.Jit's allocator cache share.
 BYTES_PER_RAY = 200
 BYTES_PER_RAY_AD = 640
+# Anti-aliasing's rays carry their footprints through every bounce (differentials.py): each
+# generation's children hold their offset rays too, and the first pass its signatures; a
+# 2048 x 1536 render of scenes/aa_showcase.ray at a 256 MB budget peaked at 1.7 times the
+# budget above the image's buffers with the primal's figure
+FOOTPRINT_FACTOR = 2
 NOMINAL_RAYS_PER_SECOND = 4e6  # the time guard's rate where none was measured
 CLIP = 2.0  # a kernel counts at most this many times the probe's third longest (robust_seconds)
 MEASURED_RAYS = 1000  # a probe of fewer rays measures nothing (one probe: <= 1024 pixels)
@@ -85,6 +90,12 @@ def available_memory():
     return None
 
 
+def bytes_per_ray(ad=False, footprint=False):
+    """The memory a ray of a chunk's tree is counted at: traced with AD (``ad``) or not, its
+    rays carrying footprints (``footprint``, anti-aliasing) or not."""
+    return (BYTES_PER_RAY_AD if ad else BYTES_PER_RAY) * (FOOTPRINT_FACTOR if footprint else 1)
+
+
 def check_image(width, height, memory_budget, assemble=True, corners=False):
     """Refuse (BudgetError) a ``width`` x ``height`` image whose output buffer cannot be
     held: too many values for one image or, when the image is ``assemble``d on the host,
@@ -114,15 +125,16 @@ class Estimate:
     ``rays_per_camera_ray``: the probe's estimate; ``max_depth``: the tree's depth (the
     messages name it); ``memory_budget``: bytes one chunk's tree may take; ``time_limit``:
     seconds (0: none); ``rays_per_second``: the scene's measured rate (None: the nominal
-    one)."""
+    one); ``ray_bytes``: what a ray of a chunk's tree is counted at (:func:`bytes_per_ray`)."""
 
     def __init__(self, rays_per_camera_ray, width, height, spp, max_depth, memory_budget,
-                 time_limit, rays_per_second=None):
+                 time_limit, rays_per_second=None, ray_bytes=BYTES_PER_RAY):
         self.rays_per_camera_ray = rays_per_camera_ray  # the probe's estimate
         self.width, self.height = width, height  # the image
         self.spp = spp  # the render's samples per pixel
         self.max_depth = max_depth  # bounces after the camera ray
         self.memory_budget = memory_budget  # bytes one chunk's tree may take
+        self.ray_bytes = ray_bytes  # what a ray of it is counted at (bytes_per_ray)
         self.time_limit = time_limit  # seconds of estimated time refused past (0: none)
         self.rays = 0.0  # the estimate: the rays of the jobs admitted so far
         # the time guard's rate: rays traced per second
@@ -133,7 +145,7 @@ class Estimate:
         refuse (BudgetError) the render if its average pixel's ray tree alone exceeds the
         memory budget, or if its estimated time is beyond the time limit."""
         self.rays += self.rays_per_camera_ray * pixels * samples
-        pixel = self.rays / (self.width * self.height) * BYTES_PER_RAY
+        pixel = self.rays / (self.width * self.height) * self.ray_bytes
         if pixel > self.memory_budget:
             raise BudgetError(
                 f"depth {self.max_depth} at {self.spp} spp: the ray tree of a pixel needs about "

@@ -288,7 +288,8 @@ class Whitted(mi.CppADIntegrator):
         self.rays_per_second = self.rays_per_second or rate
         return guards.Estimate(rays, width, height, spp, max_depth=self.max_depth,
                                memory_budget=self.memory_budget, time_limit=self.time_limit,
-                               rays_per_second=self.rays_per_second)
+                               rays_per_second=self.rays_per_second,
+                               ray_bytes=guards.bytes_per_ray(footprint=self.tracer.footprint))
 
     def _boundary(self, scene, sensor, spp, width, height):
         """(issue 13) The boundary terms of an adjoint pass (boundary.Boundary), or None where
