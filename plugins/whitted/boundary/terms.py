@@ -32,11 +32,19 @@ KEYED, SWITCH_STEPS = (SHADOW, CHAIN_VISIBILITY, CHAIN_SHADOW), 10
 
 
 def _groups(kind, light, depth):
-    """((kind, light, depth), indices) for each combination the pairs hold (numpy each)."""
-    combos = np.stack([kind, light, depth], -1).astype(np.int64)
-    unique, inverse = np.unique(combos, axis=0, return_inverse=True)
-    return [(tuple(int(v) for v in u), np.flatnonzero(inverse.ravel() == i))
-            for i, u in enumerate(unique)]
+    """((kind, light, depth), indices) for each combination the pairs hold (numpy each), in
+    the combinations' order, each one's indices increasing. (One integer code a pair, in
+    mixed radix: sorted as the triples are, and a 1-D sort, not np.unique's of rows.)"""
+    columns = [np.asarray(v).astype(np.int64).ravel() for v in (kind, light, depth)]
+    if not len(columns[0]):
+        return []
+    code = np.zeros(len(columns[0]), np.int64)
+    for column in columns:
+        low = column.min()
+        code = code * (column.max() - low + 1) + (column - low)
+    _, inverse, counts = np.unique(code, return_inverse=True, return_counts=True)
+    members = np.split(np.argsort(inverse.ravel(), kind="stable"), np.cumsum(counts)[:-1])
+    return [(tuple(int(column[where[0]]) for column in columns), where) for where in members]
 
 
 def spread_adjoint(grad_in, pixel, fraction):
