@@ -306,12 +306,12 @@ class Terms:
         return out
 
     def traced(self, points, keyed=None, kind=None, light=None, depth=None):
-        """The colors (numpy (2, n, 3)) and first hits' shapes ((2, n)) of the rays of the
-        lattice points ``points`` (two sets of n (y, x)), traced; and at the points
-        ``keyed`` (indices into a set) of pairs of ``kind`` (``light``, ``depth``), the
-        edge's keys ((2, len(keyed)), as :meth:`edge_key` reads them from the lattice, the
-        samples' rule; None if none)."""
-        count = len(points[0][0])
+        """The colors (numpy (s, n, 3)) and first hits' shapes ((s, n)) of the rays of the
+        lattice points ``points`` (s sets of n (y, x)), traced; and at the points ``keyed``
+        (indices into a set) of pairs of ``kind`` (``light``, ``depth``), the edge's keys
+        ((s, len(keyed)), as :meth:`edge_key` reads them from the lattice, the samples'
+        rule; None if none)."""
+        count, sets = len(points[0][0]), len(points)
         seen, keys = [], []  # (from the trace's own hits)
         wanted = keyed is not None and len(keyed) > 0
 
@@ -325,15 +325,15 @@ class Terms:
                                    for i in range(2)))
             color = self.tracer.trace(self.scene, ray, self.terms, first_hit=first_hit).color
             dr.eval(color, seen[0], [keys[0]["lit"]] if wanted else [])
-            colors = _host(color).reshape(2, count, 3)
-            shapes = seen[0].numpy().reshape(2, count)
+            colors = _host(color).reshape(sets, count, 3)
+            shapes = seen[0].numpy().reshape(sets, count)
             if not wanted:
                 return colors, shapes, None
             first = keys[0]
             chain = self.chain_keys(first["next"], first["go"], first["tir"]) \
                 if np.isin(kind, (CHAIN_VISIBILITY, CHAIN_SHADOW)).any() else None
-        lanes = np.concatenate([keyed, keyed + count])  # (the keyed points of both sets)
-        kind2, light2, depth2 = (np.tile(v, 2) for v in (kind, light, depth))
+        lanes = np.concatenate([keyed + i * count for i in range(sets)])  # (of every set)
+        kind2, light2, depth2 = (np.tile(v, sets) for v in (kind, light, depth))
         out = np.zeros(len(lanes), np.int64)
         for (k, j, d), where in _groups(kind2, light2, depth2):
             if k == SHADOW:
@@ -344,7 +344,7 @@ class Terms:
             else:
                 lit, flat_j = chain["chain_lit"], d * len(self.lights) + j
                 out[where] = lit[flat_j][lanes[where]] if flat_j < len(lit) else 0
-        return colors, shapes, out.reshape(2, len(keyed))
+        return colors, shapes, out.reshape(sets, len(keyed))
 
     def switch(self, L, axis, key_l, kind, light, depth, steps=SWITCH_STEPS):
         """Where along the pairs from L (lattice points, ``axis``) the edge's key (see
@@ -355,7 +355,7 @@ class Terms:
         for _ in range(steps):
             mid = 0.5 * (lo + hi)
             point = self.along_axis(L, axis, mid)
-            _, _, keys = self.traced([point, point], every, kind, light, depth)
+            _, _, keys = self.traced([point], every, kind, light, depth)
             like_l = keys[0] == key_l
             lo, hi = np.where(like_l, mid, lo), np.where(like_l, hi, mid)
         return lo, hi
