@@ -111,7 +111,8 @@ class RenderOptions:
         None, "Adaptive anti-aliasing, the way to make an image to look at: pixels whose "
               "centre and four corners differ by more than THRESHOLD (linear), and pixels "
               "between two such pixels, are traced again with a 2x2 to 12x12 grid by the "
-              "contrast.",
+              "contrast; pixels whose samples all followed one path (the same surfaces, "
+              "lights and shadows) keep their first sample.",
         INTEGRATOR, float, unset="off", low=0, low_open=True, metavar="[THRESHOLD]",
         flag_value=0.02)
     memory_budget: int = option(

@@ -210,11 +210,12 @@ class Tracer:
                 raise TreeTooLarge(depth + 1, dr.width(ray), rays_per_generation)
 
         color = path = None
+        # (data, not a constant of the kernels: a new threshold compiles nothing)
+        least_weight = None if signed is None else dr.opaque(mi.Float, signed)
         for generation in reversed(generations):
             color = generation.subtree_color(color)
             if signed is not None:
-                # (data, not a constant of the kernels: a new threshold compiles nothing)
-                path = generation.subtree_signature(path, dr.opaque(mi.Float, signed))
+                path = generation.subtree_signature(path, least_weight)
             if not (lazy and generation is generations[0]):
                 dr.eval(color, path)  # once for all channels: the next step gathers from each
         return Trace(color, rays_per_generation, path)
