@@ -9,12 +9,15 @@ so that the material's base color C times it gives C and black squares, as the
 format says. :func:`checker` is the one implementation of this formula: the
 Whitted integrator calls it with each hit's square size gathered from its surface
 table, and this texture's ``eval`` with its own. :func:`checker_filtered` is its average
-over a sample's footprint as perspective maps it (:func:`filtered_board`: also whether the
-footprint holds a corner of the board), which anti-aliasing's rays use, from the camera
-and through mirrors and glass (``--aa``; a plain render keeps the value at the point).
+over a sample's footprint as perspective maps it (:func:`filtered_board`: that average with
+what anti-aliasing asks of it, a :class:`BoardAverage`), which anti-aliasing's rays use,
+from the camera and through mirrors and glass (``--aa``; a plain render keeps the value at
+the point).
 
 Parameters: ``size`` (float, > 0): the side s of a square, in the plane's object space.
 """
+
+from typing import NamedTuple
 
 import drjit as dr
 import mitsuba as mi
@@ -51,18 +54,30 @@ def checker_filtered(uv, size, duv_dx, duv_dy, distortion=None):
     :func:`checker`; one that reaches past the horizon (not finite) 1/2, the board's mean;
     one more distorted than MAX_DISTORTION is taken as if it were that distorted (an
     average of many squares all the same; ``footprint_resolved`` tells them apart)."""
-    return filtered_board(uv, size, duv_dx, duv_dy, distortion)[0]
+    return filtered_board(uv, size, duv_dx, duv_dy, distortion).value
+
+
+class BoardAverage(NamedTuple):
+    """The checkerboard over a sample's footprint (:func:`filtered_board`), and what
+    anti-aliasing needs to know of that average (``signature.py``)."""
+
+    value: object  # Float: the average, :func:`checker_filtered`'s value
+    corner: object  # Bool: a piece of the footprint holds a corner of the board (a square's
+    # edges in both axes cross it: neither axis's average is +-1), where the product of its
+    # two averages is not the exact average of a slanted piece
+    resolved: object  # Bool: the footprint was averaged (:func:`footprint_resolved`)
+    residual: object  # Float: how distorted its pieces still are (:func:`residual_distortion`)
 
 
 def filtered_board(uv, size, duv_dx, duv_dy, distortion=None):
-    """(value, corner): :func:`checker_filtered`'s value, and whether a piece of the
-    footprint holds a corner of the board (a square's edges in both axes cross it: neither
-    axis's average is +-1), where the product of its two averages is not the exact average
-    of a slanted piece. The pieces are a loop, each lane running its own count (most
+    """:func:`checker_filtered`'s value with what anti-aliasing asks of it: a
+    :class:`BoardAverage`. The pieces are a loop, each lane running its own count (most
     footprints are one or two pieces); detached: the footprint is a filter's, its
     derivative is not computed (anti-aliasing, whose rays carry footprints, refuses the
     keys that move the geometry)."""
     with dr.suspend_grad():
+        footprint = (dr.detach(duv_dx), dr.detach(duv_dy),
+                     None if distortion is None else dr.detach(distortion))
         uv, size = dr.detach(uv), dr.detach(size)
         inv = 1.0 / size
         a, b, ka, kb = _longer_first(dr.detach(duv_dx) * inv, dr.detach(duv_dy) * inv,
@@ -91,7 +106,9 @@ def filtered_board(uv, size, duv_dx, duv_dy, distortion=None):
         _, total, corner = dr.while_loop((zero, zero, dr.zeros(dr.mask_t(x0), dr.width(x0))),
                                          lambda k, total, corner: k < count, body,
                                          label="checker pieces")
-        return dr.select(finite, 0.5 * (1.0 + total / count), 0.5), finite & corner
+        return BoardAverage(dr.select(finite, 0.5 * (1.0 + total / count), 0.5),
+                            finite & corner, footprint_resolved(*footprint),
+                            residual_distortion(*footprint))
 
 
 SPLIT = 8  # the most pieces a footprint is cut into (checker_filtered)

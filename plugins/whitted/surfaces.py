@@ -33,6 +33,7 @@ handful; see ``SceneTerms``).
 """
 
 from operator import attrgetter, itemgetter
+from typing import NamedTuple
 
 import drjit as dr
 import mitsuba as mi
@@ -41,13 +42,25 @@ import numpy as np
 from .arrays import jit_array
 from .hits import HitTable, shape_ids
 from .protocol import SURFACE_PARAMETERS, SurfaceSet, check_emitter, check_surface
-from ..checkerboard import (FIRST_ORDER, checker, filtered_board, footprint_resolved,
-                            residual_distortion)
+from ..checkerboard import FIRST_ORDER, checker, filtered_board
 
 NO_SLOT = 0xFFFFFFFF  # a slot index that names no surface (e.g. an unused crossing record)
 # Every table has at least this many rows: Dr.Jit folds a gather from a one-element array
 # into a broadcast, so a scene with one surface would otherwise get kernels of its own.
 MIN_ROWS = 2
+
+
+class BaseColor(NamedTuple):
+    """A surface's color C at each hit (:meth:`Surfaces.base_color`), and how it was read,
+    which anti-aliasing's path signatures need (``signature.py``)."""
+
+    color: object  # Color3f
+    sampled: object  # Bool: a texture was read at the hit point only (an image texture, a
+    # checkerboard without a footprint or with one ``footprint_resolved`` refuses: off the
+    # table's meshes, towards the horizon), which cannot stand for the pixel's average
+    distortion: object  # Float: how distorted the checkerboard's footprint still is
+    # (``residual_distortion``; where it holds a corner of the board, at least twice
+    # FIRST_ORDER; 0 off checkerboards), which asks for a grid of smaller footprints
 
 
 class OpaqueSetError(ValueError):
@@ -344,61 +357,36 @@ class Surfaces:
         """The float parameter ``name`` of each lane's slot."""
         return dr.gather(mi.Float, getattr(self, name), slot, active)
 
-    def base_color(self, si, slot, active, footprint=None, corners=None):
+    def base_color(self, si, slot, active, footprint=None):
         """C at each hit: the material's color times the surface's image textures (in
-        order), times its checkerboard; ``footprint``: (duv_dx, duv_dy, distortion), each
-        sample's footprint in texture space (anti-aliasing's rays, ``HitTable.uv_footprint``),
-        over which the checkerboard is averaged (``filtered_board``), or None: its value
-        at the point; ``corners``: a list that receives where the footprint holds a corner
-        of the board (Bool; with a footprint on a checkered scene), or None."""
+        order), times its checkerboard, with how it was read (a :class:`BaseColor`);
+        ``footprint``: (duv_dx, duv_dy, distortion), each sample's footprint in texture
+        space (anti-aliasing's rays, ``HitTable.uv_footprint``), over which the checkerboard
+        is averaged (``filtered_board``), or None: its value at the point."""
         layout = self.layout
         color = dr.gather(mi.Color3f, self.color, slot, active)
+        sampled, distortion = mi.Bool(False), mi.Float(0.0)
         for texture_of_slot in layout.texture_of_slot:
             which = dr.gather(mi.UInt32, texture_of_slot, slot, active)
+            sampled |= active & (which != 0)
             for index, texture in enumerate(layout.textures, start=1):
                 mask = active & (which == index)
                 color = dr.select(mask, color * texture.eval(si, mask), color)
         if layout.checker_size is not None:
             size = dr.gather(mi.Float, layout.checker_size, slot, active)
-            mask = active & (size > 0)
-            size = dr.select(mask, size, 1.0)
+            board = active & (size > 0)
+            size = dr.select(board, size, 1.0)
             if footprint is None:
-                board = checker(si.uv, size)
-            else:
-                board, corner = filtered_board(si.uv, size, *footprint)
-                if corners is not None:
-                    corners.append(mask & corner)
-            color = dr.select(mask, color * board, color)
-        return color
-
-    def texture_detail(self, slot, active, footprint=None, corner=None):
-        """(Bool, Float): where :meth:`base_color` reads a texture at the hit point only (an
-        image texture, or a checkerboard without a ``footprint``, or with one that
-        ``footprint_resolved`` refuses: off the table's meshes, towards the horizon), which
-        anti-aliasing cannot take for its pixel's average (``signature.py``); and how
-        distorted the checkerboard's footprint still is (``residual_distortion``, or where
-        it holds a ``corner`` of the board, base_color's, as if by twice FIRST_ORDER; 0 off
-        checkerboards), which asks for a grid of smaller footprints."""
-        layout = self.layout
-        sampled, distortion = mi.Bool(False), mi.Float(0.0)
-        for texture_of_slot in layout.texture_of_slot:
-            sampled |= active & (dr.gather(mi.UInt32, texture_of_slot, slot, active) != 0)
-        if layout.checker_size is not None:
-            board = self.checkered(slot, active)
-            if footprint is None:
+                value = checker(si.uv, size)
                 sampled |= board
             else:
-                sampled |= board & ~footprint_resolved(*footprint)
-                distortion = residual_distortion(*footprint)
-                if corner is not None:  # (the footprint's average is not exact there; a 2 x 2
-                    # grid of quarter footprints, each with a quarter of the error, is)
-                    distortion = dr.maximum(distortion,
-                                            dr.select(corner, 2.0 * FIRST_ORDER, 0.0))
-                distortion = dr.select(board, distortion, 0.0)
-        return sampled, distortion
+                average = filtered_board(si.uv, size, *footprint)
+                value = average.value
+                sampled |= board & ~average.resolved
+                # (where it holds a corner the average is not exact; a 2 x 2 grid of quarter
+                # footprints, each with a quarter of the error, is)
+                distortion = dr.select(board, dr.maximum(average.residual, dr.select(
+                    average.corner, 2.0 * FIRST_ORDER, 0.0)), 0.0)
+            color = dr.select(board, color * value, color)
+        return BaseColor(color, sampled, distortion)
 
-    def checkered(self, slot, active):
-        """Bool: where the surface has a checkerboard."""
-        if self.layout.checker_size is None:
-            return mi.Bool(False)
-        return active & (dr.gather(mi.Float, self.layout.checker_size, slot, active) > 0)

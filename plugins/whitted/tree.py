@@ -232,16 +232,15 @@ class Tracer:
         footprints = self.carries_footprints(ray, terms)
         if footprints:
             footprint = terms.geometry.uv_footprint(si, ray, hit)
-        corners = None if signed is None or footprint is None else []  # (for the signature)
-        color = surfaces.base_color(si, slot, hit, footprint, corners)
+        base = surfaces.base_color(si, slot, hit, footprint)
         shadows = None if first_hit is None else []
         codes = None if signed is None else []  # the lights' codes of the hits' signatures
-        local = self.shade(scene, terms, si, slot, color, ray, shadows, queries, codes)
+        local = self.shade(scene, terms, si, slot, base.color, ray, shadows, queries, codes)
         local = dr.select(hit, local, terms.background)
         if first_hit is not None:
             first_hit(si, ray, hit, shadows)
         own = None if signed is None else \
-            self.hit_signature(terms, si, slot, footprint, codes, corners[0] if corners else None)
+            self.hit_signature(terms, si, base, codes)
         if not children:
             return Step(local, hit, signature=own)
         kr = surfaces.get("reflectivity", slot, hit)
@@ -259,15 +258,13 @@ class Tracer:
                                    reflect, refract)
         return Step(local, hit, weights, rays, own)
 
-    def hit_signature(self, terms, si, slot, footprint, codes, corner=None):
+    def hit_signature(self, terms, si, base, codes):
         """The signature of each lane's own hit (signature.py): its surface, the lights'
-        ``codes``, whether a texture was read at a point, and the grid a checkerboard's
-        ``footprint`` (or None) needs where it is distorted or holds a ``corner`` of the
-        board (Bool, or None)."""
+        ``codes``, and from its ``base`` color (``Surfaces.base_color``) whether a texture
+        was read at a point and the grid a checkerboard's footprint needs."""
         hit = si.is_valid()
-        sampled, distortion = terms.surfaces.texture_detail(slot, hit, footprint, corner)
         return signature.local(hit, si.shape, self.surface_key(terms.geometry, si, hit), codes,
-                               sampled, signature.grid_code(distortion))
+                               base.sampled, signature.grid_code(base.distortion))
 
     def carries_footprints(self, ray, terms):
         """Whether the rays ``ray`` carry their samples' footprints that a checkerboard is

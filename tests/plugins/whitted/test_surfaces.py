@@ -86,7 +86,7 @@ def test_base_color_is_color_times_texture_times_checker(mitsuba, scene):
     si = mi.SurfaceInteraction3f()
     si.uv = mi.Point2f(np.float32(u), np.float32(v))
     lane_slots = mi.UInt32(np.repeat(slots, 3).astype(np.uint32))
-    got = np.array(surfaces.base_color(si, lane_slots, mi.Bool(True))).T.reshape(4, 3, 3)
+    got = np.array(surfaces.base_color(si, lane_slots, mi.Bool(True)).color).T.reshape(4, 3, 3)
     checker = np.array([1.0, 1.0, 0.0])[:, None]
     want = [np.tile(A["color"], (3, 1)), np.tile(A["color"], (3, 1)),
             checker * np.multiply(A["color"], TEXEL), np.tile(B["color"], (3, 1))]
