@@ -32,6 +32,10 @@ def square(half):
 
 
 class Plane(mi.Mesh):
+    # what the Whitted integrator reads (plugins/whitted/protocol.py, UnboundedPlane): the
+    # mesh's outline is the horizon, not its outer ring's edge
+    unbounded_plane = True
+
     def __init__(self, props):
         cx, cz = props.get("center_x", 0.0), props.get("center_z", 0.0)
         inner, outer = props.get("inner", 1.0), props.get("outer", 1e6)

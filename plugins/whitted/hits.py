@@ -40,9 +40,11 @@ import numpy as np
 from raymitsuba.geometry import sphere_set
 
 from .arrays import jit_array
-from .protocol import SurfaceSet
+from .protocol import SurfaceSet, UnboundedPlane
 
-MESH, SMOOTH, TEXCOORDS, SPHERE = 1, 2, 4, 8  # bits of a shape's kind (0: not in the table)
+# bits of a shape's kind (0: not in the table); PLANE: a flat mesh that stands for an unbounded
+# plane (protocol.UnboundedPlane)
+MESH, SMOOTH, TEXCOORDS, SPHERE, PLANE = 1, 2, 4, 8, 16
 
 
 # Shape ids read by shape_ids, by the Dr.Jit index of the scene's array of shapes (which
@@ -206,7 +208,7 @@ class HitTable:
         # Whether the geometry carries derivatives (a copy made by geometry_ad.GeometryAD)
         self.moving = False
         # By shape registry id (see build)
-        self.kind = None  # UInt32: the bits MESH, SMOOTH, TEXCOORDS, SPHERE (0: not in the table)
+        self.kind = None  # UInt32: the bits MESH, SMOOTH, TEXCOORDS, SPHERE, PLANE (0: not in the table)
         self.kind_host = None  # the same, numpy
         self.first = None  # UInt32: the shape's first face (meshes) or row (spheres)
         self.size = None  # UInt32 (opaque): the tables' length, one past the largest id
@@ -291,7 +293,8 @@ class HitTable:
             mesh_positions = position_buf.numpy()
             count = len(mesh_positions) // 3
             kind[shape_id] = MESH | (SMOOTH if normal_buf is not None else 0) \
-                | (TEXCOORDS if texcoord_buf is not None else 0)
+                | (TEXCOORDS if texcoord_buf is not None else 0) \
+                | (PLANE if isinstance(shape, UnboundedPlane) and shape.unbounded_plane else 0)
             first[shape_id] = face_count
             faces.append(mesh_faces + vertex_count)
             positions.append(mesh_positions)
@@ -315,6 +318,7 @@ class HitTable:
             dr.zeros(mi.UInt32, 3)
         self.positions = upload(positions, np.float32, 3)
         self.has_smooth = bool(np.any(kind & SMOOTH))
+        self.has_planes = bool(np.any(kind & PLANE))
         self.has_texcoords = bool(np.any(kind & TEXCOORDS))
         # (only the attributes some mesh has: flat or untextured scenes keep no zeros)
         self.normals = upload(normals if self.has_smooth else [], np.float32, 3)

@@ -9,7 +9,8 @@ provide its part; the names they check are the classes' own (:func:`members`).
 * :class:`Surface`: the BSDF of every shape of the scene (``rayphong``, ``raytextured``),
   with its :class:`SurfaceMaterial`, or a :class:`SurfaceSet` of them, one per primitive;
 * :class:`Light` (``raylight``) and :class:`Background` (``raybackground``): every emitter
-  of the scene is one or the other.
+  of the scene is one or the other;
+* :class:`UnboundedPlane`: a mesh that stands for an unbounded plane (``rayplane``).
 """
 
 from __future__ import annotations
@@ -82,6 +83,16 @@ class Background(Protocol):
     """The background: the color of every ray that hits nothing."""
 
     background_color: object  # mi.Color3f
+
+
+@runtime_checkable
+class UnboundedPlane(Protocol):
+    """A flat mesh that stands for an unbounded plane (``rayplane``: rings that reach past
+    the horizon). Its outline is where the plane vanishes (the horizon), not the edge of
+    whichever face a ray hit: the edge derivatives take the plane's own inside function
+    there (``boundary/visibility.py``)."""
+
+    unbounded_plane: bool  # True
 
 
 @functools.cache  # (read once per protocol: a scene checks thousands of surfaces)

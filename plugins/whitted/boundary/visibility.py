@@ -10,7 +10,7 @@ import mitsuba as mi
 import numpy as np
 
 from ..arrays import jit_array
-from ..hits import MESH, SMOOTH, SPHERE
+from ..hits import MESH, PLANE, SMOOTH, SPHERE
 from .lattice import NO_HIT, STOP, at
 from .terms import at_l_and_r, on_lanes, signs_differ, stacked
 
@@ -101,7 +101,23 @@ class Visibility:
                 chosen = dr.select(edge == 0, e[0], dr.select(edge == 1, e[1], e[2]))
                 g = dr.select(edge >= 0, chosen, g)
             out = dr.select(mesh, g, out)
+            if table.has_planes:  # (an unbounded plane's outline is its horizon)
+                plane = mesh & ((kind & PLANE) != 0)
+                out = dr.select(plane, self.towards_plane(table, ray, d, row, prim, plane), out)
         return out
+
+    @staticmethod
+    def towards_plane(table, ray, d, row, prim, plane):
+        """The inside function of an unbounded plane (``hits.PLANE``) for each ray of unit
+        direction ``d``: the sine of the angle at which it heads towards the plane of its
+        lane's face, from the side of it its origin lies on; 0 at the horizon, where the plane
+        vanishes. (Its faces' edges are edges of rings that crowd towards the horizon, many
+        to a lattice unit; the one a ray hit is not where the plane ends, and moves otherwise:
+        the horizon stays put when the eye moves.)"""
+        _, (p0, p1, p2) = table.corners(row, prim, plane)
+        n = dr.normalize(dr.cross(p1 - p0, p2 - p0))
+        above = dr.dot(dr.detach(n), dr.detach(ray.o - p0)) >= 0
+        return dr.select(above, -1.0, 1.0) * dr.dot(n, d)
 
     @staticmethod
     def sphere_frame(table, row, prim, o, d, sphere):
@@ -111,10 +127,15 @@ class Visibility:
         return table.sphere_frame(row + prim, o, d, sphere)
 
     def edge_functions(self, table, ray, d, row, prim, mesh):
-        """The three normalized edge functions of each lane's face, signed to be > 0 inside."""
+        """The three normalized edge functions of each lane's face, signed to be > 0 inside:
+        where the ray meets the face, seen from the side of the face's plane its origin lies
+        on. (That side, not the sign of the direction against the normal: at a face seen
+        edge-on that sign flips between two rays of a pair that both miss it, and the
+        functions with it -- the plane's far ring at the horizon, whose miss rays point
+        above the plane's own vanishing line by a millionth of a radian.)"""
         _, (p0, p1, p2) = table.corners(row, prim, mesh)
-        side = dr.dot(dr.detach(dr.cross(p1 - p0, p2 - p0)), dr.detach(d))
-        sigma = dr.select(side <= 0, 1.0, -1.0)
+        side = dr.dot(dr.detach(dr.cross(p1 - p0, p2 - p0)), dr.detach(ray.o - p0))
+        sigma = dr.select(side >= 0, 1.0, -1.0)
         return [sigma * dr.dot(dr.cross(a - ray.o, b - ray.o), d) / dr.norm(b - a)
                 for a, b in ((p0, p1), (p1, p2), (p2, p0))]
 

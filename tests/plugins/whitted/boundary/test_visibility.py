@@ -42,6 +42,38 @@ def test_a_slanted_edge_moves_by_its_closed_form(mi):
     assert grad[..., 0].sum() == pytest.approx(expected, rel=0.01)
 
 
+# a plane under a level camera, lit by ambient light only (the floor one flat colour): the
+# horizon, 0.1 below the eye's level at the look-at point, crosses pixel row 5
+HORIZON = """\
+eye 0 1 5
+lookat 0 0.9 0
+fov 40
+background 0.2 0.3 0.4
+light 1 1 1 ambient
+material 0.8 0.4 0.3 1 0 0 10 0 0 1
+translate 0 -1 0
+plane
+"""
+
+
+@pytest.mark.parametrize("spp", [1, 4, 16])
+@pytest.mark.parametrize("key, sign", [("camera.lookat", 1.0), ("camera.eye", -1.0)])
+def test_the_horizon_moves_with_the_camera_by_its_closed_form(mi, key, sign, spp):
+    # The camera pitches down by b = atan((eye - look-at) / 5) in y; the horizon is at b
+    # above the optical axis, at row H/2 - (H/2) tan b / tan 20 (5.67: in row 5), which
+    # moves down by H / (10 tan 20) rows per unit the look-at point rises (up, as the eye
+    # does), at any b: each pixel of row 5 turns from the floor (0.8 red) to the background
+    # (0.2) at that rate. Two things made it wrong before: the edge functions took their
+    # sign from the ray's direction, which flips where the plane's far ring is seen edge-on
+    # (the derivative's sign came out wrong); and a ray's face's own edge stood for the
+    # plane's outline, which is the horizon (at k = 1 the term fell in row 6, and it moved
+    # with the eye).
+    grad = forward(mi, HORIZON, key, (0, 1, 0), spp)
+    expected = np.zeros((H, W))
+    expected[5] = sign * (0.2 - 0.8) * H / (10 * math.tan(math.radians(20)))
+    np.testing.assert_allclose(grad[..., 0], expected, rtol=1e-3, atol=1e-4)
+
+
 @pytest.mark.parametrize("text, key, direction, h", [
     (SPHERE, "translate1.offset", (0.6, -0.8, 0.0), 0.03),  # a silhouette
     (SPHERE, "camera.eye", (0.6, 0.0, -0.8), 0.03),  # the same, from the camera
