@@ -76,8 +76,11 @@ samples:
 
 * a visibility edge of the nearer surface N (the other sample's ray misses N's primitive):
   N's inside function -- r - |(c - o) x d| for a sphere, the least of the three normalized
-  edge functions for a triangle; else the other surface's; else (both rays meet both
-  primitives: a crease) the difference of the two primitives' hit distances;
+  edge functions for a triangle (signed by the side of its plane the ray starts on), the
+  sine of the angle at which the ray heads towards an unbounded plane (``rayplane``: its
+  outline is the horizon, not the edge of the ring face a ray hit); else the other
+  surface's; else (both rays meet both primitives: a crease) the difference of the two
+  primitives' hit distances;
 * a shadow edge of light j: the blocking primitive's inside function on the two samples'
   shadow rays (from the attached hit point toward the attached light); where the unlit
   sample has no blocker, it faces away from the light or lies outside a spot's cone: N.L

@@ -82,8 +82,9 @@ class Visibility:
 
     def inside(self, table, ray, faces, edge=None):
         """The inside function of each ray's primitive (``faces``: :class:`Faces`): > 0 where
-        the ray's line meets it (see the package docstring). For a triangle, ``edge`` (an
-        Int32 per lane: 0, 1, 2, or -1 for the least of the three) picks the edge function."""
+        the ray meets it (a sphere: its line; see the package docstring). For a triangle,
+        ``edge`` (an Int32 per lane: 0, 1, 2, or -1 for the least of the three) picks the
+        edge function; an unbounded plane's is :meth:`towards_plane`."""
         valid, kind, row, prim = faces.valid, faces.kind, faces.row, faces.prim
         out = mi.Float(-1.0)
         d = dr.normalize(ray.d)
