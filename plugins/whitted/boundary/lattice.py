@@ -1,6 +1,6 @@
 """The lattice and the constants its keys and pairs share (the package docstring: "The
 lattice", "Pairs"): the keys' sentinels (NO_HIT, STOP), the kinds of pairs and a pair's
-points; a lattice point's flat position and the readers of the lattice's arrays at it; the
+points, the angle of a crease; a lattice point's flat position and the readers of the lattice's arrays at it; the
 lattice point of a camera ray (:func:`lattice_index`) and the ring around the image
 (:func:`ring_points`); the host's copies of the keys."""
 
@@ -13,6 +13,10 @@ STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
 KINDS = 7  # kinds of pairs:
 VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW = range(KINDS)
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
+# Two faces of a mesh whose unit normals' dot product is below this (60 degrees apart) lie
+# across a crease: more than the 45 degrees between neighbours of the coarsest tessellation
+# (8 segments), less than a cap's 90 degrees to a cylinder's side
+CREASE = 0.5
 
 
 def flat(points, cols):

@@ -7,12 +7,15 @@ derivative (:meth:`Terms.surrogates`), the pixels it is shared by (:meth:`Terms.
 mode (:meth:`Terms.forward`), pairs in chunks. Which g a kind of edge has: its own module
 (:meth:`Terms.crossing` picks it at the first hit, ``chain.py``'s along the chain)."""
 
+from typing import NamedTuple
+
 import drjit as dr
 import mitsuba as mi
 import numpy as np
 
 from ..arrays import jit_array
-from .lattice import (CHAIN_SHADOW, CHAIN_VISIBILITY, CHECKER, NO_HIT, POINTS, SHADOW, STOP,
+from ..hits import MESH
+from .lattice import (CHAIN_SHADOW, CHAIN_VISIBILITY, CHECKER, CREASE, NO_HIT, POINTS, SHADOW, STOP,
                       VISIBILITY, _host, at, flat, span)
 
 PAIRS_PER_CHUNK = 1 << 16
@@ -125,6 +128,15 @@ class Ends:
         self.shape, self.prim, self.t = (
             (at(plane, self.l), at(plane, self.r))
             for plane in (boundary.shape, boundary.prim, boundary.t))
+
+
+class Traced(NamedTuple):
+    """Rays traced at s sets of n lattice points (:meth:`Terms.traced`)."""
+
+    colors: np.ndarray  # (s, n, 3)
+    shapes: np.ndarray  # (s, n): the first hit's shape id (NO_HIT: none)
+    normals: np.ndarray  # (s, n, 3): its face's normal (si.n)
+    keys: object  # (s, len(keyed)) int64: the edge's keys at the keyed points, or None
 
 
 class Terms:
@@ -270,8 +282,9 @@ class Terms:
         points = [self.along_axis(ends.L, axis, w + offset) for offset in (-step, step)]
         keyed = np.flatnonzero(np.isin(kind, KEYED))
         edge = (kind[keyed], light[keyed], depth[keyed])
-        colors, shapes, keys = self.traced(points, keyed, *edge)
-        same = (shapes[0] == ends.shape[0]) & (shapes[1] == ends.shape[1])
+        sides = self.traced(points, keyed, *edge)
+        colors, keys = sides.colors, sides.keys
+        same = self.same_surfaces(sides, ends)
         if len(keyed):
             key_l, key_r = (self.edge_key(end[keyed], *edge) for end in (ends.l, ends.r))
             lost = np.flatnonzero((keys[0] != key_l) | (keys[1] != key_r))
@@ -280,14 +293,28 @@ class Terms:
                 L = tuple(p[pairs] for p in ends.L)
                 lo, hi = self.switch(L, axis[pairs], key_l[lost],
                                      *(e[lost] for e in edge))
-                colors[:, pairs], _, _ = self.traced(
-                    [self.along_axis(L, axis[pairs], at) for at in (lo, hi)])
+                colors[:, pairs] = self.traced(
+                    [self.along_axis(L, axis[pairs], at) for at in (lo, hi)]).colors
         jump = colors[0] - colors[1]
         if not same.all():
             other = ~same
             jump[other] = self.colors_at(tuple(p[other] for p in ends.L)) \
                 - self.colors_at(tuple(p[other] for p in ends.R))
         return jump
+
+    def same_surfaces(self, sides, ends):
+        """Per pair: whether the rays traced either side of its crossing (``sides``, a
+        :class:`Traced` of the two) see what its samples L and R (``ends``) see: the same
+        shape, and on a mesh a face no crease away from the sample's (a closed mesh's faces,
+        grown against cracks, stand a sliver past one another at its outline: a ray there
+        meets the far side's face)."""
+        same = (sides.shapes[0] == ends.shape[0]) & (sides.shapes[1] == ends.shape[1])
+        for side, (shape, end) in enumerate(zip(ends.shape, (ends.l, ends.r))):
+            mesh = np.flatnonzero(same & (shape != NO_HIT))
+            mesh = mesh[self.kind_of[np.minimum(shape[mesh], len(self.kind_of) - 1)] & MESH != 0]
+            n = np.stack([at(c, end[mesh]) for c in self.normal], -1)
+            same[mesh[np.einsum("ij,ij->i", n, sides.normals[side, mesh]) < CREASE]] = False
+        return same
 
     def edge_key(self, flat_points, kind, light, depth):
         """The key that tells the sides of a pair's edge apart (numpy, per pair) at lattice
@@ -306,17 +333,18 @@ class Terms:
         return out
 
     def traced(self, points, keyed=None, kind=None, light=None, depth=None):
-        """The colors (numpy (s, n, 3)) and first hits' shapes ((s, n)) of the rays of the
-        lattice points ``points`` (s sets of n (y, x)), traced; and at the points ``keyed``
-        (indices into a set) of pairs of ``kind`` (``light``, ``depth``), the edge's keys
-        ((s, len(keyed)), as :meth:`edge_key` reads them from the lattice, the samples'
-        rule; None if none)."""
+        """The rays of the lattice points ``points`` (s sets of n (y, x)), traced: a
+        :class:`Traced` of their colors, first hits' shapes and face normals, and at the
+        points ``keyed`` (indices into a set) of pairs of ``kind`` (``light``, ``depth``) the
+        edge's keys ((s, len(keyed)), as :meth:`edge_key` reads them from the lattice, the
+        samples' rule; None if none)."""
         count, sets = len(points[0][0]), len(points)
         seen, keys = [], []  # (from the trace's own hits)
         wanted = keyed is not None and len(keyed) > 0
 
         def first_hit(si, ray, hit, shadows):
             seen.append(dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT))
+            seen.append(si.n)
             if wanted:
                 keys.append(self.hit_keys(si, ray, hit, shadows))
 
@@ -324,11 +352,12 @@ class Terms:
             ray = self.film_rays(*(np.concatenate([side[i] for side in points])
                                    for i in range(2)))
             color = self.tracer.trace(self.scene, ray, self.terms, first_hit=first_hit).color
-            dr.eval(color, seen[0], [keys[0]["lit"]] if wanted else [])
+            dr.eval(color, seen, [keys[0]["lit"]] if wanted else [])
             colors = _host(color).reshape(sets, count, 3)
             shapes = seen[0].numpy().reshape(sets, count)
+            normals = _host(seen[1]).reshape(sets, count, 3)
             if not wanted:
-                return colors, shapes, None
+                return Traced(colors, shapes, normals, None)
             first = keys[0]
             chain = self.chain_keys(first["next"], first["go"], first["tir"]) \
                 if np.isin(kind, (CHAIN_VISIBILITY, CHAIN_SHADOW)).any() else None
@@ -344,7 +373,7 @@ class Terms:
             else:
                 lit, flat_j = chain["chain_lit"], d * len(self.lights) + j
                 out[where] = lit[flat_j][lanes[where]] if flat_j < len(lit) else 0
-        return colors, shapes, out.reshape(sets, len(keyed))
+        return Traced(colors, shapes, normals, out.reshape(sets, len(keyed)))
 
     def switch(self, L, axis, key_l, kind, light, depth, steps=SWITCH_STEPS):
         """Where along the pairs from L (lattice points, ``axis``) the edge's key (see
@@ -355,8 +384,7 @@ class Terms:
         for _ in range(steps):
             mid = 0.5 * (lo + hi)
             point = self.along_axis(L, axis, mid)
-            _, _, keys = self.traced([point], every, kind, light, depth)
-            like_l = keys[0] == key_l
+            like_l = self.traced([point], every, kind, light, depth).keys[0] == key_l
             lo, hi = np.where(like_l, mid, lo), np.where(like_l, hi, mid)
         return lo, hi
 

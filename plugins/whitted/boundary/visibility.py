@@ -11,7 +11,7 @@ import numpy as np
 
 from ..arrays import jit_array
 from ..hits import MESH, PLANE, SMOOTH, SPHERE
-from .lattice import NO_HIT, STOP, at
+from .lattice import CREASE, NO_HIT, STOP, at
 from .terms import at_l_and_r, on_lanes, signs_differ, stacked
 
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
@@ -34,18 +34,23 @@ class Visibility:
 
     def surface_differs(self, L, R, kind_of):
         """Whether the samples of the pairs (L, R) (numpy flat positions, see :func:`flat`)
-        see different surfaces: another shape (or one a miss), or another face of a flat mesh
-        that is not coplanar with the first."""
+        see different surfaces: another shape (or one a miss), another face of a flat mesh
+        that is not coplanar with the first, or a face of a smooth mesh across a crease (a
+        tessellated cylinder's or cone's cap and side: one mesh, whose vertex normals jump
+        at the rim, and the shading with them), where the faces' normals differ by more than
+        CREASE."""
         sl, sr = at(self.shape, L), at(self.shape, R)
         differs = sl != sr
         faces = ~differs & (sl != NO_HIT) & (at(self.prim, L) != at(self.prim, R))
         if not faces.any():
             return differs
         kind = kind_of[np.minimum(sl[faces], len(kind_of) - 1)]
-        planar = (kind & MESH != 0) & (kind & SMOOTH == 0)
-        where = np.flatnonzero(faces)[planar]
+        mesh, smooth = kind & MESH != 0, kind & SMOOTH != 0
+        where = np.flatnonzero(faces)[mesh]
         nl, nr = (np.stack([at(c, side[where]) for c in self.normal], -1) for side in (L, R))
-        differs[where[np.linalg.norm(nl - nr, axis=-1) > COPLANAR]] = True
+        apart = np.where(smooth[mesh], np.einsum("ij,ij->i", nl, nr) < CREASE,
+                         np.linalg.norm(nl - nr, axis=-1) > COPLANAR)
+        differs[where[apart]] = True
         return differs
 
     def visibility(self, table, ray, left, right, choices, name):
@@ -136,7 +141,7 @@ class Visibility:
         above the plane's own vanishing line by a millionth of a radian.)"""
         _, (p0, p1, p2) = table.corners(row, prim, mesh)
         side = dr.dot(dr.detach(dr.cross(p1 - p0, p2 - p0)), dr.detach(ray.o - p0))
-        sigma = dr.select(side >= 0, 1.0, -1.0)
+        sigma = dr.select(side >= 0, -1.0, 1.0)
         return [sigma * dr.dot(dr.cross(a - ray.o, b - ray.o), d) / dr.norm(b - a)
                 for a, b in ((p0, p1), (p1, p2), (p2, p0))]
 
