@@ -76,9 +76,10 @@ samples:
 
 * a visibility edge of the nearer surface N (the other sample's ray misses N's primitive):
   N's inside function -- r - |(c - o) x d| for a sphere, the least of the three normalized
-  edge functions for a triangle (signed by the side of its plane the ray starts on), the
-  sine of the angle at which the ray heads towards an unbounded plane (``rayplane``: its
-  outline is the horizon, not the edge of the ring face a ray hit); else the other
+  edge functions for a triangle (signed by the side of its plane a camera ray starts on,
+  or a chain's or shadow ray heads from), for a camera ray the sine of the angle at which
+  it heads towards an unbounded plane (``rayplane``: its outline is the horizon, not the
+  edge of the ring face a ray hit); else the other
   surface's; else (both rays meet both primitives: a crease) the difference of the two
   primitives' hit distances;
 * a shadow edge of light j: the blocking primitive's inside function on the two samples'

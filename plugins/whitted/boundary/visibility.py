@@ -58,18 +58,20 @@ class Visibility:
         which see (shape, prim, t) ``left`` and ``right`` (per pair): N is the nearer; N's
         inside function where the other ray's line misses N's primitive, else the other's,
         else (a crease) the difference of the two primitives' distances. ``choices``: see
-        g_at (theirs: under ``name``)."""
+        g_at (theirs: under ``name``; "first": the camera's rays, whose origin is the eye,
+        else rays that start on a surface: see :meth:`edge_functions`)."""
         lanes = dr.width(ray.d)
+        from_eye = name == "first"
         near_is_l = left[2] <= right[2]
         n_shape, n_prim = (np.where(near_is_l, a, b) for a, b in zip(left[:2], right[:2]))
         f_shape, f_prim = (np.where(near_is_l, b, a) for a, b in zip(left[:2], right[:2]))
         made = choices.get((name, "visibility"))
         if made is None:  # N's function where its sign differs between L and R, else F's
             near, far = Faces(table, n_shape, n_prim), Faces(table, f_shape, f_prim)
-            n_edge = self.crossed_edge(table, ray, near)
-            f_edge = self.crossed_edge(table, ray, far)
+            n_edge = self.crossed_edge(table, ray, near, from_eye)
+            f_edge = self.crossed_edge(table, ray, far, from_eye)
             with dr.suspend_grad():
-                g_l, g_r = ([self.inside(table, rays, faces, edge)
+                g_l, g_r = ([self.inside(table, rays, faces, edge, from_eye)
                              for faces, edge in ((near, n_edge), (far, f_edge))]
                             for rays in at_l_and_r(ray, len(f_shape)))
             use_n = signs_differ(g_l[0], g_r[0])
@@ -79,17 +81,18 @@ class Visibility:
             n_edge, f_edge, use_n, use_f = made
         near, far = (Faces(table, stacked(shape, lanes), stacked(prim, lanes))
                      for shape, prim in ((n_shape, n_prim), (f_shape, f_prim)))
-        gn = self.inside(table, ray, near, on_lanes(n_edge, lanes))
-        gf = self.inside(table, ray, far, on_lanes(f_edge, lanes))
+        gn = self.inside(table, ray, near, on_lanes(n_edge, lanes), from_eye)
+        gf = self.inside(table, ray, far, on_lanes(f_edge, lanes), from_eye)
         crease = self.depth(table, ray, near) - self.depth(table, ray, far)
         return dr.select(on_lanes(use_n, lanes), gn,
                          dr.select(on_lanes(use_f, lanes), gf, crease))
 
-    def inside(self, table, ray, faces, edge=None):
+    def inside(self, table, ray, faces, edge=None, from_eye=False):
         """The inside function of each ray's primitive (``faces``: :class:`Faces`): > 0 where
-        the ray meets it (a sphere: its line; see the package docstring). For a triangle,
-        ``edge`` (an Int32 per lane: 0, 1, 2, or -1 for the least of the three) picks the
-        edge function; an unbounded plane's is :meth:`towards_plane`."""
+        the ray meets it (see the package docstring). For a triangle, ``edge`` (an Int32 per
+        lane: 0, 1, 2, or -1 for the least of the three) picks the edge function; an
+        unbounded plane seen by the camera's rays (``from_eye``, see :meth:`edge_functions`)
+        has :meth:`towards_plane`."""
         valid, kind, row, prim = faces.valid, faces.kind, faces.row, faces.prim
         out = mi.Float(-1.0)
         d = dr.normalize(ray.d)
@@ -101,13 +104,13 @@ class Visibility:
             out = dr.select(sphere, r - dr.norm(dr.cross(oc, d_local)), out)
         if table.has_meshes:
             mesh = valid & ((kind & MESH) != 0)
-            e = self.edge_functions(table, ray, d, row, prim, mesh)
+            e = self.edge_functions(table, ray, d, row, prim, mesh, from_eye)
             g = dr.minimum(dr.minimum(e[0], e[1]), e[2])
             if edge is not None:
                 chosen = dr.select(edge == 0, e[0], dr.select(edge == 1, e[1], e[2]))
                 g = dr.select(edge >= 0, chosen, g)
             out = dr.select(mesh, g, out)
-            if table.has_planes:  # (an unbounded plane's outline is its horizon)
+            if from_eye and table.has_planes:  # (an unbounded plane's outline: its horizon)
                 plane = mesh & ((kind & PLANE) != 0)
                 out = dr.select(plane, self.towards_plane(table, ray, d, row, prim, plane), out)
         return out
@@ -132,25 +135,32 @@ class Visibility:
         sphere set)."""
         return table.sphere_frame(row + prim, o, d, sphere)
 
-    def edge_functions(self, table, ray, d, row, prim, mesh):
+    def edge_functions(self, table, ray, d, row, prim, mesh, from_eye=False):
         """The three normalized edge functions of each lane's face, signed to be > 0 inside:
-        where the ray meets the face, seen from the side of the face's plane its origin lies
-        on. (That side, not the sign of the direction against the normal: at a face seen
-        edge-on that sign flips between two rays of a pair that both miss it, and the
-        functions with it -- the plane's far ring at the horizon, whose miss rays point
-        above the plane's own vanishing line by a millionth of a radian.)"""
+        where the ray meets the face. The sign is the side of the face's plane the ray comes
+        from: for the camera's rays (``from_eye``), the side its origin lies on; for rays that
+        start on a surface (along the specular chain, to a light), the side its direction
+        points away from. (The eye lies on no face's plane, while the sign of a direction
+        against a face's normal flips between two rays of a pair that both miss the face
+        seen edge-on: the plane's far ring at the horizon, whose miss rays point above its
+        vanishing line by a millionth of a radian. A surface point may lie near another
+        face's plane, and two rays of a pair then start either side of it.)"""
         _, (p0, p1, p2) = table.corners(row, prim, mesh)
-        side = dr.dot(dr.detach(dr.cross(p1 - p0, p2 - p0)), dr.detach(ray.o - p0))
-        sigma = dr.select(side >= 0, -1.0, 1.0)
+        normal = dr.detach(dr.cross(p1 - p0, p2 - p0))
+        if from_eye:
+            sigma = dr.select(dr.dot(normal, dr.detach(ray.o - p0)) >= 0, -1.0, 1.0)
+        else:
+            sigma = dr.select(dr.dot(normal, dr.detach(d)) <= 0, -1.0, 1.0)
         return [sigma * dr.dot(dr.cross(a - ray.o, b - ray.o), d) / dr.norm(b - a)
                 for a, b in ((p0, p1), (p1, p2), (p2, p0))]
 
-    def crossed_edge(self, table, ray, faces):
+    def crossed_edge(self, table, ray, faces, from_eye=False):
         """Per pair (an Int32 of P lanes, on the device): the edge of its face (``faces``:
         :class:`Faces`, one per pair) through which the segment between the rays of L and R
         (of the stacked rays ``ray``) leaves or enters the face: of the edges whose function
         changes sign between them, the one whose sign changes nearest the inside end (the
-        functions taken as linear along the segment); -1: none, or not a face. (Not merely
+        functions taken as linear along the segment; ``from_eye``: see :meth:`edge_functions`);
+        -1: none, or not a face. (Not merely
         the first that flips: the line of another edge may also pass between L and R -- a
         tessellation's thin triangles, whose long edges run side by side -- and crossing
         that line is no edge of the surface.)"""
@@ -163,7 +173,8 @@ class Visibility:
             for rays in at_l_and_r(ray, count):  # (L's, then R's)
                 d = dr.normalize(dr.detach(rays.d))
                 rays = mi.Ray3f(dr.detach(rays.o), d)
-                sides.append(self.edge_functions(table, rays, d, faces.row, faces.prim, mesh))
+                sides.append(self.edge_functions(table, rays, d, faces.row, faces.prim, mesh,
+                                                 from_eye))
             # the end inside the face: where the least of the three functions is the larger
             l_inside = dr.minimum(dr.minimum(sides[0][0], sides[0][1]), sides[0][2]) >= \
                 dr.minimum(dr.minimum(sides[1][0], sides[1][1]), sides[1][2])
