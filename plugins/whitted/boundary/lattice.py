@@ -19,6 +19,11 @@ POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighb
 CREASE = 0.5
 
 
+def across_crease(a, b):
+    """Whether the unit normals ``a`` and ``b`` (numpy (n, 3)) lie across a crease (CREASE)."""
+    return np.einsum("ij,ij->i", a, b) < CREASE
+
+
 def flat(points, cols):
     """The flat positions (row-major) of the lattice points ``points`` = (y, x) (numpy) in
     arrays of ``cols`` columns: the lattice's arrays are read at these (:func:`at`)."""

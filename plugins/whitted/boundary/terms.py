@@ -15,8 +15,8 @@ import numpy as np
 
 from ..arrays import jit_array
 from ..hits import MESH
-from .lattice import (CHAIN_SHADOW, CHAIN_VISIBILITY, CHECKER, CREASE, NO_HIT, POINTS, SHADOW, STOP,
-                      VISIBILITY, _host, at, flat, span)
+from .lattice import (CHAIN_SHADOW, CHAIN_VISIBILITY, CHECKER, NO_HIT, POINTS, SHADOW, STOP,
+                      VISIBILITY, _host, across_crease, at, flat, span)
 
 PAIRS_PER_CHUNK = 1 << 16
 LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
@@ -313,7 +313,7 @@ class Terms:
             mesh = np.flatnonzero(same & (shape != NO_HIT))
             mesh = mesh[self.kind_of[np.minimum(shape[mesh], len(self.kind_of) - 1)] & MESH != 0]
             n = np.stack([at(c, end[mesh]) for c in self.normal], -1)
-            same[mesh[np.einsum("ij,ij->i", n, sides.normals[side, mesh]) < CREASE]] = False
+            same[mesh[across_crease(n, sides.normals[side, mesh])]] = False
         return same
 
     def edge_key(self, flat_points, kind, light, depth):

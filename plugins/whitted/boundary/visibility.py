@@ -11,7 +11,7 @@ import numpy as np
 
 from ..arrays import jit_array
 from ..hits import MESH, PLANE, SMOOTH, SPHERE
-from .lattice import CREASE, NO_HIT, STOP, at
+from .lattice import NO_HIT, STOP, across_crease, at
 from .terms import at_l_and_r, on_lanes, signs_differ, stacked
 
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
@@ -48,7 +48,7 @@ class Visibility:
         mesh, smooth = kind & MESH != 0, kind & SMOOTH != 0
         where = np.flatnonzero(faces)[mesh]
         nl, nr = (np.stack([at(c, side[where]) for c in self.normal], -1) for side in (L, R))
-        apart = np.where(smooth[mesh], np.einsum("ij,ij->i", nl, nr) < CREASE,
+        apart = np.where(smooth[mesh], across_crease(nl, nr),
                          np.linalg.norm(nl - nr, axis=-1) > COPLANAR)
         differs[where[apart]] = True
         return differs
