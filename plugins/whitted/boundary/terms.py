@@ -137,6 +137,40 @@ class Traced(NamedTuple):
     shapes: np.ndarray  # (s, n): the first hit's shape id (NO_HIT: none)
     normals: np.ndarray  # (s, n, 3): its face's normal (si.n)
     keys: object  # (s, len(keyed)) int64: the edge's keys at the keyed points, or None
+    paths: object = None  # per set, the Path of the points ``paths``, or None
+
+
+class Path(NamedTuple):
+    """What the paths of n samples meet past their first hit (numpy): per light, whether it
+    lights the first hit (``lit``, (n, lights)); per bounce of the specular chain, the shape
+    met (``shapes``, (n, bounces)) and per light whether it lights it (``chain_lit``,
+    (n, bounces, lights)). Bounces past those held: as the chain's keys start (STOP, unlit)."""
+
+    lit: np.ndarray
+    shapes: np.ndarray
+    chain_lit: np.ndarray
+
+    @classmethod
+    def of(cls, lit, shapes, chain_lit, n):
+        """A Path from per-light, per-bounce and per-(bounce, light) lists of n entries (a
+        bounce's lights in a row, as the lattice's ``chain_lit`` holds them)."""
+        lights, bounces = len(lit), len(shapes)
+        return cls(np.stack(lit, -1) if lights else np.zeros((n, 0), bool),
+                   np.stack(shapes, -1) if bounces else np.zeros((n, 0), np.uint32),
+                   np.stack(chain_lit, -1).reshape(n, bounces, lights) if bounces and lights
+                   else np.zeros((n, bounces, lights), bool))
+
+    def differs(self, other):
+        """Per sample, whether two Paths of the same samples' count differ."""
+        out = np.any(self.lit != other.lit, axis=1)
+        bounces = max(self.shapes.shape[1], other.shapes.shape[1])
+        for mine, theirs, fill in ((self.shapes, other.shapes, STOP),
+                                   (self.chain_lit, other.chain_lit, False)):
+            mine, theirs = (np.concatenate([a, np.full((len(a), bounces - a.shape[1])
+                                                       + a.shape[2:], fill, a.dtype)], 1)
+                            for a in (mine, theirs))
+            out |= np.any((mine != theirs).reshape(len(out), -1), axis=1)
+        return out
 
 
 class Terms:
@@ -186,6 +220,14 @@ class Terms:
         # function reads, adds no term: selected out, as a product with 0 would carry NaN in
         # forward mode)
         valid &= np.isfinite(gm) & np.isfinite(gp)
+        # ... nor one whose g beside the crossing, not bracketing it, is no line through L's
+        # and R's: falling where they rise, or further from zero than both (g folds between
+        # them: a ray along the chain that grazes what it meets, near a mirror ball's rim);
+        # its g's rate there belongs to no crossing (a sphere's center, k = 16: one pair
+        # 4.6 times its pixel's derivative, off)
+        valid &= bracket | ((np.sign(gp - gm) == np.sign(gr - gl))
+                            & (np.minimum(np.abs(gm), np.abs(gp))
+                               <= np.maximum(np.abs(gl), np.abs(gr))))
         scale = np.where(valid, normal2 / (self.k ** 2 * np.where(valid, along, 1.0)), 0.0)
         rate = -(g_star - dr.detach(g_star)) * jit_array(mi.Float, scale.astype(np.float32))
         rate = dr.select(jit_array(mi.Bool, valid), rate, 0.0)
@@ -282,9 +324,22 @@ class Terms:
         points = [self.along_axis(ends.L, axis, w + offset) for offset in (-step, step)]
         keyed = np.flatnonzero(np.isin(kind, KEYED))
         edge = (kind[keyed], light[keyed], depth[keyed])
-        sides = self.traced(points, keyed, *edge)
+        visible = np.flatnonzero(kind == VISIBILITY)
+        sides = self.traced(points, keyed, *edge, paths=visible)
         colors, keys = sides.colors, sides.keys
         same = self.same_surfaces(sides, ends)
+        # a visibility pair's near side (the surface whose outline it is) whose path past the
+        # surface differs from its sample's: the sample's color. Near a curved outline the
+        # surface's own look is squeezed into a band by it (foreshortening; a mirror ball's
+        # rim holds what lies behind it, unfolded): an edge in that band, between the
+        # crossing and the sample, is no pair's, and moves with the outline
+        if len(visible):
+            near = np.where(ends.t[0][visible] <= ends.t[1][visible], 0, 1)  # (L, R)
+            for s, (point, flat_point) in enumerate(((ends.L, ends.l), (ends.R, ends.r))):
+                differs = sides.paths[s].differs(self.path_at(flat_point[visible]))
+                off = visible[differs & (near == s)]
+                if len(off):
+                    colors[s, off] = self.colors_at(tuple(p[off] for p in point))
         if len(keyed):
             key_l, key_r = (self.edge_key(end[keyed], *edge) for end in (ends.l, ends.r))
             lost = np.flatnonzero((keys[0] != key_l) | (keys[1] != key_r))
@@ -332,35 +387,47 @@ class Terms:
             out[where] = at(plane, flat_points[where])
         return out
 
-    def traced(self, points, keyed=None, kind=None, light=None, depth=None):
+    def traced(self, points, keyed=None, kind=None, light=None, depth=None, paths=None):
         """The rays of the lattice points ``points`` (s sets of n (y, x)), traced: a
-        :class:`Traced` of their colors, first hits' shapes and face normals, and at the
+        :class:`Traced` of their colors, first hits' shapes and face normals, at the
         points ``keyed`` (indices into a set) of pairs of ``kind`` (``light``, ``depth``) the
         edge's keys ((s, len(keyed)), as :meth:`edge_key` reads them from the lattice, the
-        samples' rule; None if none)."""
+        samples' rule; None if none), and at the points ``paths`` (indices) their
+        :class:`Path` s (a list, one a set; None if none)."""
         count, sets = len(points[0][0]), len(points)
         seen, keys = [], []  # (from the trace's own hits)
+        follow = paths is not None and len(paths) > 0
         wanted = keyed is not None and len(keyed) > 0
 
         def first_hit(si, ray, hit, shadows):
             seen.append(dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT))
             seen.append(si.n)
-            if wanted:
+            if wanted or follow:
                 keys.append(self.hit_keys(si, ray, hit, shadows))
 
         with dr.suspend_grad():
             ray = self.film_rays(*(np.concatenate([side[i] for side in points])
                                    for i in range(2)))
             color = self.tracer.trace(self.scene, ray, self.terms, first_hit=first_hit).color
-            dr.eval(color, seen, [keys[0]["lit"]] if wanted else [])
+            dr.eval(color, seen, [keys[0]["lit"]] if wanted or follow else [])
             colors = _host(color).reshape(sets, count, 3)
             shapes = seen[0].numpy().reshape(sets, count)
             normals = _host(seen[1]).reshape(sets, count, 3)
-            if not wanted:
+            if not (wanted or follow):
                 return Traced(colors, shapes, normals, None)
             first = keys[0]
             chain = self.chain_keys(first["next"], first["go"], first["tir"]) \
-                if np.isin(kind, (CHAIN_VISIBILITY, CHAIN_SHADOW)).any() else None
+                if follow or np.isin(kind, (CHAIN_VISIBILITY, CHAIN_SHADOW)).any() else None
+        found = None
+        if follow:
+            lanes = np.concatenate([paths + i * count for i in range(sets)])
+            found = Path.of([v.numpy()[lanes] for v in first["lit"]],
+                            [v[lanes] for v in chain["chain_shape"]],
+                            [v[lanes] for v in chain["chain_lit"]], len(lanes))
+            found = [Path(*(a[i * len(paths):(i + 1) * len(paths)] for a in found))
+                     for i in range(sets)]
+        if not wanted:
+            return Traced(colors, shapes, normals, None, found)
         lanes = np.concatenate([keyed + i * count for i in range(sets)])  # (of every set)
         kind2, light2, depth2 = (np.tile(v, sets) for v in (kind, light, depth))
         out = np.zeros(len(lanes), np.int64)
@@ -373,7 +440,13 @@ class Terms:
             else:
                 lit, flat_j = chain["chain_lit"], d * len(self.lights) + j
                 out[where] = lit[flat_j][lanes[where]] if flat_j < len(lit) else 0
-        return Traced(colors, shapes, normals, out.reshape(sets, len(keyed)))
+        return Traced(colors, shapes, normals, out.reshape(sets, len(keyed)), found)
+
+    def path_at(self, flat_points):
+        """The :class:`Path` s of the lattice's samples at ``flat_points``, as it holds them."""
+        return Path.of([at(plane, flat_points) for plane in self.lit],
+                       [at(plane, flat_points) for plane in self.chain_shape],
+                       [at(plane, flat_points) for plane in self.chain_lit], len(flat_points))
 
     def switch(self, L, axis, key_l, kind, light, depth, steps=SWITCH_STEPS):
         """Where along the pairs from L (lattice points, ``axis``) the edge's key (see
