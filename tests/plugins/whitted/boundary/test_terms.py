@@ -110,3 +110,45 @@ def test_a_terms_weight_is_the_adjoint_of_its_pixels_by_its_fractions(mi):
     got = terms.spread_adjoint(grad_in, pixel, fraction)
     assert got.dtype == np.float32
     np.testing.assert_allclose(got, want, rtol=1e-6)
+
+
+# a mirror ball (MIT 6.837) over a floor whose far edge lies just behind it; ambient light
+# only, so the image is piecewise constant and its derivative is all edges (random seed 17,
+# reduced)
+MIRROR_BALL = """eye 5.337 3.535 4.346
+lookat 0.05977 -0.4588 -0.04996
+fov 56.85
+background 0.1306 0.322 0.2192
+light 1 1 1 ambient
+surface 0.908 0.5915 0.8156 0.229 0.772 0.475 30 0 0 1
+triangles
+v -6 -1 -1.5
+v 6 -1 -1.5
+v 6 -1 6
+v -6 -1 6
+f 0 1 2
+f 0 2 3
+end
+surface 0.6619 0.4869 0.7611 0.2 0.3 0.3 20 0.7 0 1
+sphere -1.574 -0.0298 -0.9514 0.4351
+"""
+
+
+def test_an_edge_squeezed_inside_a_mirror_balls_rim_moves_with_the_rim(mi):
+    """Near a mirror ball's rim what lies just outside it is reflected, unfolded and
+    squeezed into a band far thinner than a lattice unit: here the floor's far edge. A pair
+    across the rim took its jump at the rim (the reflected background on its inside) and
+    the reflected edge, between the rim and the inside sample, was no pair's. A visibility
+    pair's near side whose path past the surface (the chain's shapes, the lights) differs
+    from its sample's now takes the sample's color (Terms.jump). The ball's radius at
+    64 x 48 against the pixel-integrated FD of the 32 x 32 lattice (tests/random_scenes.py),
+    the weighted sum at k = 8 relative to Sum |w FD|: measured 3.4 % (before: 9.8 %, and
+    10.9 % at k = 4: not falling); asserted 5 %."""
+    from random_scenes import lattice_difference
+
+    size, key, h = (64, 48), "sphere1.radius", 0.02
+    reference = lattice_difference(mi, MIRROR_BALL, key, (1.0,), h, 32, size)
+    grad = forward(mi, MIRROR_BALL, key, (1.0,), 64, width=size[0], height=size[1])
+    w = weights(size[1], size[0])
+    error = abs(np.sum(w * (grad - reference))) / np.sum(np.abs(w * reference))
+    assert error < 0.05, error
