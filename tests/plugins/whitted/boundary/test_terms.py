@@ -1,5 +1,6 @@
 """The terms (plugins/whitted/boundary/terms.py): the crossing refined where g curves, the
-jump taken at the crossing, the zero-valued surrogates, the edge's normal where a
+jump taken at the crossing (at the sample, where an edge squeezed inside a mirror ball's rim
+lies between them), the zero-valued surrogates, the edge's normal where a
 neighbour's g is undefined, and a term's weight in reverse mode."""
 
 from __future__ import annotations
