@@ -220,14 +220,6 @@ class Terms:
         # function reads, adds no term: selected out, as a product with 0 would carry NaN in
         # forward mode)
         valid &= np.isfinite(gm) & np.isfinite(gp)
-        # ... nor one whose g beside the crossing, not bracketing it, is no line through L's
-        # and R's: falling where they rise, or further from zero than both (g folds between
-        # them: a ray along the chain that grazes what it meets, near a mirror ball's rim);
-        # its g's rate there belongs to no crossing (a sphere's center, k = 16: one pair
-        # 4.6 times its pixel's derivative, off)
-        valid &= bracket | ((np.sign(gp - gm) == np.sign(gr - gl))
-                            & (np.minimum(np.abs(gm), np.abs(gp))
-                               <= np.maximum(np.abs(gl), np.abs(gr))))
         scale = np.where(valid, normal2 / (self.k ** 2 * np.where(valid, along, 1.0)), 0.0)
         rate = -(g_star - dr.detach(g_star)) * jit_array(mi.Float, scale.astype(np.float32))
         rate = dr.select(jit_array(mi.Bool, valid), rate, 0.0)
