@@ -308,7 +308,15 @@ class Terms:
         off, per-pixel 48 %; now 0.4 % and 9 %; the crossing's place and rate stay that
         inner edge's, the rest of that error). So too an edge seen in a mirror ball near
         its rim, where g along the chain is far from linear (a ball's radius, k = 8: 19 %
-        -> 8.3 %)."""
+        -> 8.3 %).
+
+        A visibility pair's near side (the surface whose outline the edge is) whose traced
+        ray's path past the surface (:class:`Path`: the chain's shapes, the lights that reach
+        its hits) is not its sample's takes the sample's color: an edge squeezed between the
+        outline and the sample (a mirror ball's rim holds what lies just outside it,
+        unfolded, in a band thinner than the lattice at any k) moves with the outline
+        (docs/gradients.md, 'Edges on random scenes': seed 17's ball radius at 128 x 96,
+        k = 8, 40.5 % -> 5.7 % of the weighted sum)."""
         count = len(kind)
         rim = max(RIM_LIMIT, FILM_ULPS * self.k * max(self.width, self.height) * 2.0 ** -24)
         limit = np.where(kind == VISIBILITY, rim, LIMIT)
