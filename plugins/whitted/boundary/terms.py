@@ -137,7 +137,7 @@ class Traced(NamedTuple):
     shapes: np.ndarray  # (s, n): the first hit's shape id (NO_HIT: none)
     normals: np.ndarray  # (s, n, 3): its face's normal (si.n)
     keys: object  # (s, len(keyed)) int64: the edge's keys at the keyed points, or None
-    paths: object = None  # per set, the Path of the points ``paths``, or None
+    paths: object = None  # per set, the Path of its points ``paths[set]``, or None
 
 
 class Path(NamedTuple):
@@ -169,7 +169,7 @@ class Path(NamedTuple):
             mine, theirs = (np.concatenate([a, np.full((len(a), bounces - a.shape[1])
                                                        + a.shape[2:], fill, a.dtype)], 1)
                             for a in (mine, theirs))
-            out |= np.any((mine != theirs).reshape(len(out), -1), axis=1)
+            out |= np.any(mine != theirs, axis=tuple(range(1, mine.ndim)))
         return out
 
 
@@ -325,7 +325,9 @@ class Terms:
         keyed = np.flatnonzero(np.isin(kind, KEYED))
         edge = (kind[keyed], light[keyed], depth[keyed])
         visible = np.flatnonzero(kind == VISIBILITY)
-        sides = self.traced(points, keyed, *edge, paths=visible)
+        nearer = ends.t[0][visible] <= ends.t[1][visible]  # (L's side, else R's)
+        near = [visible[nearer], visible[~nearer]]
+        sides = self.traced(points, keyed, *edge, paths=near if len(visible) else None)
         colors, keys = sides.colors, sides.keys
         same = self.same_surfaces(sides, ends)
         # a visibility pair's near side (the surface whose outline it is) whose path past the
@@ -334,10 +336,8 @@ class Terms:
         # rim holds what lies behind it, unfolded): an edge in that band, between the
         # crossing and the sample, is no pair's, and moves with the outline
         if len(visible):
-            near = np.where(ends.t[0][visible] <= ends.t[1][visible], 0, 1)  # (L, R)
             for s, (point, flat_point) in enumerate(((ends.L, ends.l), (ends.R, ends.r))):
-                differs = sides.paths[s].differs(self.path_at(flat_point[visible]))
-                off = visible[differs & (near == s)]
+                off = near[s][sides.paths[s].differs(self.path_at(flat_point[near[s]]))]
                 if len(off):
                     colors[s, off] = self.colors_at(tuple(p[off] for p in point))
         if len(keyed):
@@ -392,11 +392,12 @@ class Terms:
         :class:`Traced` of their colors, first hits' shapes and face normals, at the
         points ``keyed`` (indices into a set) of pairs of ``kind`` (``light``, ``depth``) the
         edge's keys ((s, len(keyed)), as :meth:`edge_key` reads them from the lattice, the
-        samples' rule; None if none), and at the points ``paths`` (indices) their
-        :class:`Path` s (a list, one a set; None if none)."""
+        samples' rule; None if none), and at each set's points ``paths[set]`` (indices
+        into the set) their :class:`Path` (a list, one a set; None if none: only those
+        points' chains are followed past the first hit, with the keyed chain edges')."""
         count, sets = len(points[0][0]), len(points)
         seen, keys = [], []  # (from the trace's own hits)
-        follow = paths is not None and len(paths) > 0
+        follow = paths is not None and sum(len(p) for p in paths) > 0
         wanted = keyed is not None and len(keyed) > 0
 
         def first_hit(si, ray, hit, shadows):
@@ -416,16 +417,27 @@ class Terms:
             if not (wanted or follow):
                 return Traced(colors, shapes, normals, None)
             first = keys[0]
-            chain = self.chain_keys(first["next"], first["go"], first["tir"]) \
-                if follow or np.isin(kind, (CHAIN_VISIBILITY, CHAIN_SHADOW)).any() else None
+            along = np.isin(kind, (CHAIN_VISIBILITY, CHAIN_SHADOW)) if wanted else None
+            chain = None
+            if follow or along.any():
+                # (the chains of the points whose keys are read: the paths' and the keyed
+                # edges' along the chain)
+                needed = np.zeros(sets * count, bool)
+                for i in range(sets):
+                    if follow:
+                        needed[paths[i] + i * count] = True
+                    if wanted:
+                        needed[keyed[along] + i * count] = True
+                chain = self.chain_keys(first["next"], first["go"] & jit_array(mi.Bool, needed),
+                                        first["tir"])
         found = None
         if follow:
-            lanes = np.concatenate([paths + i * count for i in range(sets)])
-            found = Path.of([v.numpy()[lanes] for v in first["lit"]],
-                            [v[lanes] for v in chain["chain_shape"]],
-                            [v[lanes] for v in chain["chain_lit"]], len(lanes))
-            found = [Path(*(a[i * len(paths):(i + 1) * len(paths)] for a in found))
-                     for i in range(sets)]
+            found = []
+            for i, points_i in enumerate(paths):
+                lanes = points_i + i * count
+                found.append(Path.of([v.numpy()[lanes] for v in first["lit"]],
+                                     [v[lanes] for v in chain["chain_shape"]],
+                                     [v[lanes] for v in chain["chain_lit"]], len(lanes)))
         if not wanted:
             return Traced(colors, shapes, normals, None, found)
         lanes = np.concatenate([keyed + i * count for i in range(sets)])  # (of every set)
