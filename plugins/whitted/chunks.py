@@ -1,7 +1,11 @@
 """Rendering in chunks of bounded size: which camera rays are traced together.
 
 A *job* is a set of pixels (a contiguous range, or an explicit list) and a number of
-samples per pixel. It is traced in *chunks*: consecutive pixels of the job, all the
+samples per pixel (or, anti-aliasing's ``GridJob``, a number for each pixel). Its interface
+to the :class:`Chunker`: ``count`` (pixels), ``rays(sensor, start, count, footprint)``,
+``samples(start, count)`` (camera rays of pixels start .. start + count - 1) and
+``fitting(start, lanes)`` (how many pixels from start fit in that many camera rays, at least
+one). It is traced in *chunks*: consecutive pixels of the job, all the
 samples of a pixel in the same chunk (so the box filter is per chunk), each chunk's
 whole ray tree at once. A pixel's value does not depend on the chunk it is in, so the
 image is the same, bit for bit, however it is split.
@@ -67,6 +71,15 @@ class Job:
         return camera_rays(sensor, self.width, self.height, self.spp,
                            pixels=mi.UInt32(self.pixels[start:start + count]),
                            footprint=footprint)
+
+    def samples(self, start, count):
+        """The camera rays of the job's pixels start .. start + count - 1."""
+        return count * self.spp
+
+    def fitting(self, start, lanes):
+        """How many of the job's pixels from start have at most ``lanes`` camera rays (at
+        least one)."""
+        return max(lanes // self.spp, 1)
 
     def lane_pixel(self, start, count):
         """The image's pixel number of each lane (camera ray) of the job's pixels start ..
@@ -135,13 +148,13 @@ class Chunker:
         self.pixels_total += job.count
         start = 0
         while start < job.count:
-            count = min(self._chunk_pixels(job, max_rays), job.count - start)
+            count = min(self._chunk_pixels(job, start, max_rays), job.count - start)
             trace, count = self._trace_within(job, start, count, ad, max_rays, lazy, record,
                                               queries, signed)
             rays = sum(trace.rays_per_generation)
             self.rays_traced += rays
             self.rays_per_generation = trace.rays_per_generation
-            self.ratio = max(rays / (count * job.spp), self.ratio)
+            self.ratio = max(rays / job.samples(start, count), self.ratio)
             visit(start, count, trace.color, *(() if signed is None else (trace.signature,)))
             del trace
             start += count
@@ -150,10 +163,10 @@ class Chunker:
             if self.progress is not None:
                 self.progress(self.pixels_done, self.pixels_total, self.chunks_done)
 
-    def _chunk_pixels(self, job, max_rays):
+    def _chunk_pixels(self, job, start, max_rays):
         # 1.5: room for a chunk whose tree is larger than any before
         lanes = min(int(max_rays / (self.ratio * 1.5)), MAX_CHUNK_LANES)
-        pixels = max(lanes // job.spp, 1)
+        pixels = job.fitting(start, lanes)
         return pixels if self.max_pixels is None else min(pixels, self.max_pixels)
 
     def _trace_within(self, job, start, count, ad, max_rays, lazy=False, record=None,
@@ -167,8 +180,8 @@ class Chunker:
             except TreeTooLarge:
                 if count == 1:
                     raise BudgetError(
-                        f"the ray tree of one pixel ({job.spp} samples) exceeds the memory "
-                        f"budget ({self.budget / GIB:.2g} GB): use a smaller --max-depth, "
+                        f"the ray tree of one pixel ({job.samples(start, 1)} samples) exceeds "
+                        f"the memory budget ({self.budget / GIB:.2g} GB): use a smaller --max-depth, "
                         "a --bailout (e.g. 1e-3) or a larger --memory-budget") from None
                 count = max(count // 2, 1)
 
