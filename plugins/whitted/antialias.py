@@ -95,6 +95,7 @@ import mitsuba as mi
 import numpy as np
 
 from . import signature
+from .arrays import jit_array
 from .camera import corner_rays, grid_rays
 from .chunks import Job
 
@@ -159,13 +160,15 @@ class CornerJob:
     top .. bottom - 1 has bottom - top + 1 rows of corners) of a ``width`` x ``height``
     image, one sample each: a job for ``chunks.Chunker``."""
 
-    spp = 1
-    samples, fitting = Job.samples, Job.fitting  # one sample a corner
+    spp, pixels = 1, None  # one sample a corner, a range of corners
+    samples, fitting, packet_margins = Job.samples, Job.fitting, Job.packet_margins
+    coherent = True  # (a range: see chunks.Job)
 
     def __init__(self, width, height, top, bottom):
         self.width, self.height = width, height  # the image
         self.first = top * (width + 1)  # the first corner's number
         self.count = (bottom - top + 1) * (width + 1)  # how many corners
+        self.total = (width + 1) * (height + 1)  # the corners of the image's numbering
 
     def rays(self, sensor, start, count, footprint=False):
         return corner_rays(sensor, self.width, self.height, self.first + start, count,
@@ -178,7 +181,11 @@ class GridJob:
     a job for ``chunks.Chunker``. A pixel's samples are those of ``Job(width, height, n * n,
     pixels=...)``, bit for bit; every grid's pixels in one job trace one wavefront, rather
     than one for each grid: a job's generations each cost their kernel launches and Python's
-    tracing of them, whatever their width."""
+    tracing of them, whatever their width. Each camera ray is intersected alone (not as
+    a coherent packet, see chunks.Job): which pixels a band refines, and so a ray's packet
+    mates, depend on the band."""
+
+    coherent = False
 
     def __init__(self, width, height, pixels, sides):
         self.width, self.height = width, height  # the image
@@ -192,6 +199,10 @@ class GridJob:
         """The camera rays of the job's pixels start .. start + count - 1."""
         return int(self.first_lane[start + count] - self.first_lane[start])
 
+    def packet_margins(self, start, count):
+        """None: its rays are traced alone, not in packets (chunks.Job.packet_margins)."""
+        return 0, 0
+
     def fitting(self, start, lanes):
         """How many of the job's pixels from start have at most ``lanes`` camera rays (at
         least one)."""
@@ -204,10 +215,10 @@ class GridJob:
         pixel, sample, n = self.lanes_of(start, count)
         row = sample // n
         # (1 / n in float32, as Dr.Jit's division by a constant n takes it)
-        return grid_rays(sensor, self.width, self.height, mi.UInt32(pixel),
-                         mi.UInt32(sample - row * n), mi.UInt32(row),
-                         mi.Float(np.float32(1.0) / n.astype(np.float32)),
-                         mi.Float((n * n) ** -0.5) if footprint else None)
+        return grid_rays(sensor, self.width, self.height, jit_array(mi.UInt32, pixel),
+                         jit_array(mi.UInt32, sample - row * n), jit_array(mi.UInt32, row),
+                         jit_array(mi.Float, np.float32(1.0) / n.astype(np.float32)),
+                         jit_array(mi.Float, (n * n) ** -0.5) if footprint else None)
 
     def lanes_of(self, start, count):
         """(numpy int64 arrays by camera ray of pixels start .. start + count - 1) its pixel

@@ -31,6 +31,8 @@ is also what measures the scene's rays per second for the guards (``guards.timed
 
 from __future__ import annotations
 
+import math
+
 import drjit as dr
 import mitsuba as mi
 import numpy as np
@@ -47,6 +49,11 @@ MIN_CHUNK_RAYS = 1 << 12
 MAX_CHUNK_LANES = 1 << 20
 PROBE_PIXELS = 1024
 PROBE_RAYS = 1 << 20
+# Lanes: the widest packet Embree traces coherent camera rays in on the CPU (AVX-512; AVX2's
+# 8 divide it). A ray that ties between two surfaces (coincident faces, a shared edge) may
+# resolve by its packet mates, so a coherent job's chunks are traced in whole packets of the
+# image's own lane numbering (Chunker._trace): the same packets however it is cut.
+PACKET = 16
 
 
 class Job:
@@ -61,6 +68,10 @@ class Job:
         self.first = first  # the range's first pixel
         self.count = (len(self.pixels) if pixels is not None  # how many pixels
                       else (width * height - first if count is None else count))
+        # whether the camera rays are traced as coherent packets (Tracer.trace): a range's
+        # neighbouring rays are; a list's packets would depend on what else the list holds
+        self.coherent = pixels is None
+        self.total = width * height  # the pixels of the image's numbering
 
     def rays(self, sensor, start, count, footprint=False):
         """Camera rays of the job's pixels start .. start + count - 1 (``footprint``: with
@@ -80,6 +91,17 @@ class Job:
         """How many of the job's pixels from start have at most ``lanes`` camera rays (at
         least one)."""
         return max(lanes // self.spp, 1)
+
+    def packet_margins(self, start, count):
+        """(pixels before, pixels after) the job's pixels start .. start + count - 1 that
+        complete their first and last packets of PACKET lanes, the lanes numbered from the
+        image's first (a list: 0, 0; its rays are traced alone, not as packets)."""
+        if self.pixels is not None:
+            return 0, 0
+        unit = PACKET // math.gcd(self.spp, PACKET)  # pixels of a whole number of packets
+        first = self.first + start
+        return first % unit, min(-(first + count) % unit,
+                                 self.total - first - count)
 
     def lane_pixel(self, start, count):
         """The image's pixel number of each lane (camera ray) of the job's pixels start ..
@@ -167,7 +189,17 @@ class Chunker:
         # 1.5: room for a chunk whose tree is larger than any before
         lanes = min(int(max_rays / (self.ratio * 1.5)), MAX_CHUNK_LANES)
         pixels = job.fitting(start, lanes)
-        return pixels if self.max_pixels is None else min(pixels, self.max_pixels)
+        if self.max_pixels is not None and self.max_pixels < pixels:
+            return self.max_pixels  # (as asked: its chunks take their margins, _trace)
+        return self._whole_packets(job, start, pixels)
+
+    def _whole_packets(self, job, start, count):
+        """``count`` pixels from ``start``, fewer so that the next chunk starts a packet
+        (PACKET) where that leaves some: a chunk then needs no margins (Chunker._trace)."""
+        if start + count >= job.count:
+            return count
+        past = job.packet_margins(start + count, 0)[0]  # pixels past the last packet's start
+        return count - past if past < count else count
 
     def _trace_within(self, job, start, count, ad, max_rays, lazy=False, record=None,
                       queries=None, signed=None):
@@ -183,7 +215,7 @@ class Chunker:
                         f"the ray tree of one pixel ({job.samples(start, 1)} samples) exceeds "
                         f"the memory budget ({self.budget / GIB:.2g} GB): use a smaller --max-depth, "
                         "a --bailout (e.g. 1e-3) or a larger --memory-budget") from None
-                count = max(count // 2, 1)
+                count = self._whole_packets(job, start, max(count // 2, 1))
 
     def _trace(self, job, start, count, ad, max_rays, lazy=False, record=None, queries=None,
                signed=None):
@@ -196,9 +228,22 @@ class Chunker:
             terms = self.terms
         first_hit = None if record is None else record(start, count)
         asked = None if queries is None else queries(start, count, terms)
+        # a coherent job's chunk traced in whole packets (PACKET): the rays before and after
+        # it that complete them too (not where a hook or an adjoint pass reads the lanes)
+        before, after = (0, 0) if ad or record or queries else job.packet_margins(start, count)
         with dr.resume_grad(when=ad):
-            return self.tracer.trace(self.scene, self._rays(job, start, count), terms,
-                                     max_rays, lazy, first_hit, asked, signed)
+            trace = self.tracer.trace(self.scene,
+                                      self._rays(job, start - before, before + count + after),
+                                      terms, max_rays, lazy, first_hit, asked, signed,
+                                      job.coherent)
+        if not before and not after:
+            return trace
+        # (the offset is data, not a constant of the kernel: it changes from chunk to chunk)
+        lanes = dr.arange(mi.UInt32, job.samples(start, count)) + \
+            dr.opaque(mi.UInt32, job.samples(start - before, before))
+        return trace._replace(color=dr.gather(mi.Color3f, trace.color, lanes),
+                              signature=None if trace.signature is None else
+                              dr.gather(mi.UInt32, trace.signature, lanes))
 
     def _rays(self, job, start, count):
         return job.rays(self.sensor, start, count, self.tracer.footprint)

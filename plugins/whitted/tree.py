@@ -160,7 +160,7 @@ class Tracer:
         return terms
 
     def trace(self, scene, ray, terms, max_rays=None, lazy=False, first_hit=None, queries=None,
-              signed=None):
+              signed=None, coherent=True):
         """The :class:`Trace` of each ray of ``ray`` (one lane per ray) through its whole
         tree, with the scene's ``terms`` (from :meth:`scene_terms`). ``max_rays``: a tree of
         more rays than this raises :class:`TreeTooLarge` (None: no limit). ``lazy``: the
@@ -177,7 +177,12 @@ class Tracer:
         no ``first_hit`` wants their blockers. ``signed``: None, or the Trace has each ray's
         path signature (signature.py; anti-aliasing's first pass) in which a subtree counts
         where its path weight (the product of the kr / kt weights from the camera ray down
-        to it) exceeds ``signed``."""
+        to it) exceeds ``signed``. ``coherent``: the camera rays are intersected as coherent
+        packets (Embree's packet traversal, packets of the vector width, 16 lanes with
+        AVX-512: faster for neighbouring rays, but an exact tie between two surfaces,
+        coincident faces or a ray through a shared edge, may resolve by the ray's packet
+        mates); False: each ray alone, for rays whose packets depend on how the image is cut
+        (chunks.Job's ``coherent``)."""
         # (no kr or kt > 0: one generation, no child to bail out; the bound reads the lights'
         # colors on the host, which waits for every kernel queued)
         limits = None if not terms.surfaces.any_specular else \
@@ -194,7 +199,8 @@ class Tracer:
             # (no kr or kt > 0 in the scene: no ray has a child, the tree is one generation)
             last = depth == self.max_depth or not terms.surfaces.any_specular
             step = self.step(scene, terms, ray, depth, not last,
-                             *((first_hit, queries) if depth == 0 else (None, None)), signed)
+                             *((first_hit, queries) if depth == 0 else (None, None)), signed,
+                             coherent and depth == 0)
             generation = Generation(step.local)
             generation.signature, generation.path_weight = step.signature, path_weight
             generations.append(generation)
@@ -221,10 +227,11 @@ class Tracer:
         return Trace(color, rays_per_generation, path)
 
     def step(self, scene, terms, ray, depth, children, first_hit=None, queries=None,
-             signed=None):
+             signed=None, coherent=False):
         """Intersect and shade ``ray``; with ``children``, also the children's weights and rays
-        (``first_hit``, ``queries``, ``signed``: see :meth:`trace`)."""
-        si = self.intersect(scene, terms.geometry, ray, coherent=(depth == 0), queries=queries)
+        (``first_hit``, ``queries``, ``signed``: see :meth:`trace`; ``coherent``: the rays are
+        intersected as coherent packets)."""
+        si = self.intersect(scene, terms.geometry, ray, coherent=coherent, queries=queries)
         hit = si.is_valid()
         surfaces = terms.surfaces
         slot = surfaces.slot(si.shape, si.prim_index, hit)
