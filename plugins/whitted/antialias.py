@@ -91,12 +91,10 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from . import signature
-from .arrays import jit_array
-from .camera import corner_rays, grid_rays
+from .camera import corner_rays, pixel_means
 from .chunks import Job
 
 # (n, contrast): a refined pixel gets the n x n grid of the last entry whose contrast, in
@@ -173,92 +171,6 @@ class CornerJob:
     def rays(self, sensor, start, count, footprint=False):
         return corner_rays(sensor, self.width, self.height, self.first + start, count,
                            footprint)
-
-
-class GridJob:
-    """Pixels each traced with its own n x n grid of samples: ``pixels`` (the image's pixel
-    numbers, in the order traced) of a ``width`` x ``height`` image, ``sides`` (n, by pixel),
-    a job for ``chunks.Chunker``. A pixel's samples are those of ``Job(width, height, n * n,
-    pixels=...)``, bit for bit; every grid's pixels in one job trace one wavefront, rather
-    than one for each grid: a job's generations each cost their kernel launches and Python's
-    tracing of them, whatever their width. Each camera ray is intersected alone (not as
-    a coherent packet, see chunks.Job): which pixels a band refines, and so a ray's packet
-    mates, depend on the band."""
-
-    coherent = False
-
-    def __init__(self, width, height, pixels, sides):
-        self.width, self.height = width, height  # the image
-        self.pixels = np.ascontiguousarray(pixels, dtype=np.uint32)  # the job's pixels
-        self.sides = np.asarray(sides, dtype=np.int64)  # each pixel's grid side, n
-        self.count = len(self.pixels)  # how many pixels
-        # each pixel's first camera ray, and one past the last pixel's last
-        self.first_lane = np.concatenate(([0], np.cumsum(self.sides ** 2)))
-
-    def samples(self, start, count):
-        """The camera rays of the job's pixels start .. start + count - 1."""
-        return int(self.first_lane[start + count] - self.first_lane[start])
-
-    def packet_margins(self, start, count):
-        """None: its rays are traced alone, not in packets (chunks.Job.packet_margins)."""
-        return 0, 0
-
-    def fitting(self, start, lanes):
-        """How many of the job's pixels from start have at most ``lanes`` camera rays (at
-        least one)."""
-        end = np.searchsorted(self.first_lane, self.first_lane[start] + lanes, side="right")
-        return max(int(end) - 1 - start, 1)
-
-    def rays(self, sensor, start, count, footprint=False):
-        """Camera rays of the job's pixels start .. start + count - 1, pixel-major, each
-        pixel's n^2 samples in the order of camera.camera_rays' at spp = n^2."""
-        pixel, sample, n = self.lanes_of(start, count)
-        row = sample // n
-        # (1 / n in float32, as Dr.Jit's division by a constant n takes it)
-        return grid_rays(sensor, self.width, self.height, jit_array(mi.UInt32, pixel),
-                         jit_array(mi.UInt32, sample - row * n), jit_array(mi.UInt32, row),
-                         jit_array(mi.Float, np.float32(1.0) / n.astype(np.float32)),
-                         jit_array(mi.Float, (n * n) ** -0.5) if footprint else None)
-
-    def lanes_of(self, start, count):
-        """(numpy int64 arrays by camera ray of pixels start .. start + count - 1) its pixel
-        number, its sample's number within its pixel, its pixel's grid side."""
-        local = np.repeat(np.arange(count), self.sides[start:start + count] ** 2)
-        first = self.first_lane[start:start + count] - self.first_lane[start]
-        sample = np.arange(len(local)) - first[local]
-        return (self.pixels[start:start + count][local].astype(np.int64), sample,
-                self.sides[start:start + count][local])
-
-    def runs(self, start, count):
-        """The runs of pixels of one grid side among start .. start + count - 1: (first,
-        last + 1, n) each, first counted from start."""
-        sides = self.sides[start:start + count]
-        cuts = np.flatnonzero(np.diff(sides)) + 1
-        bounds = np.concatenate(([0], cuts, [count]))
-        return [(int(a), int(b), int(sides[a])) for a, b in zip(bounds[:-1], bounds[1:])]
-
-
-def grid_samples(job, start, count, color):
-    """The colors of ``job``'s (a GridJob's) pixels start .. start + count - 1, grouped by
-    grid side: (first, last + 1, samples) each run, samples (pixels, n^2, 3) float32."""
-    values = dr.ravel(color).numpy().reshape(-1, 3)
-    runs, lane = [], 0
-    for a, b, n in job.runs(start, count):
-        runs.append((a, b, values[lane:lane + (b - a) * n * n].reshape(b - a, n * n, 3)))
-        lane += (b - a) * n * n
-    return runs
-
-
-def sample_means(samples):
-    """Each pixel's box-filtered value ((pixels, 3) float32) of its samples ((pixels, spp,
-    3) float32): summed in their order and scaled by 1 / spp, as camera.pixel_means does
-    on the device, so the same floats."""
-    total = samples[:, 0].copy()
-    for s in range(1, samples.shape[1]):
-        total += samples[:, s]
-    if samples.shape[1] > 1:
-        total *= np.float32(1.0 / samples.shape[1])
-    return total
 
 
 def least_weight(threshold):
@@ -375,85 +287,71 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     offset = first_row * width  # the first pixel of ``values``
     levels = []
 
-    def probe(*groups):
-        """Trace the pixels of each group's ``mask`` with its side x side grid, every group in
-        one job. Those ``settles(agree, flat, own)`` (bool arrays by pixel: the mean agrees
-        with the first pass's value; the samples with one another; the pixel's own grid is
-        the probe's), and those of ``by_path`` (bool by pixel of the band, or None) whose
-        probe's samples all followed its centre's path (signature.one_path), take the
-        probe's value and are done. A group: (mask, side, settles, by_path)."""
-        groups = [(np.flatnonzero(mask) + first, side, settles, by_path)
-                  for mask, side, settles, by_path in groups]
-        groups = [group for group in groups if len(group[0])]
-        if not groups:
+    def probe(mask, side, settles, by_path=None):
+        """Trace the pixels of ``mask`` with a side x side grid; those ``settles(agree,
+        flat, own)`` (bool arrays by pixel: the mean agrees with the first pass's value; the
+        samples with one another; the pixel's own grid is the probe's), and those of
+        ``by_path`` (bool by pixel of the band, or None) whose probe's samples all followed
+        its centre's path (signature.one_path), take the probe's value and are done."""
+        pixels = (np.flatnonzero(mask) + first).astype(np.uint32)
+        if not len(pixels):
             return
-        for pixels, side, _, _ in groups:
-            estimate.admit(len(pixels), side * side)
-        signed = least_weight(threshold) if any(g[3] is not None for g in groups) else None
-        job = GridJob(width, height, np.concatenate([g[0] for g in groups]),
-                      np.concatenate([np.full(len(g[0]), g[1]) for g in groups]))
-        means, spread, paths = trace_probe(chunker, job, signed)
-        at = 0
-        for pixels, side, settles, by_path in groups:
-            mine = slice(at, at + len(pixels))
-            at += len(pixels)
-            agree = np.abs(means[mine] - values[pixels - offset]).max(axis=-1) \
-                <= SETTLE * threshold
-            done = settles(agree, spread[mine] <= threshold, sides[grid[pixels - first]] == side)
-            if by_path is not None:
-                lanes = paths[job.first_lane[mine.start]:job.first_lane[mine.stop]]
-                done |= by_path[pixels - first] & signature.one_path(
-                    signatures.ravel()[pixels - offset], lanes.reshape(len(pixels), -1))
-            if done.any():
-                values[pixels[done] - offset] = means[mine][done]
-                levels.append(Level(pixels[done].astype(np.uint32), side))
-                grid[pixels[done] - first] = -1
+        estimate.admit(len(pixels), side * side)
+        signed = None if by_path is None else least_weight(threshold)
+        means, spread, paths = trace_probe(chunker, Job(width, height, side * side,
+                                                        pixels=pixels), signed)
+        agree = np.abs(means - values[pixels - offset]).max(axis=-1) <= SETTLE * threshold
+        done = settles(agree, spread <= threshold, sides[grid[pixels - first]] == side)
+        if paths is not None:
+            done |= by_path[pixels - first] & \
+                signature.one_path(signatures.ravel()[pixels - offset], paths)
+        if done.any():
+            values[pixels[done] - offset] = means[done]
+            levels.append(Level(pixels[done], side))
+            grid[pixels[done] - first] = -1
 
     around = around[band].ravel()
     # (a pixel between two refined ones whose own samples followed one path, and its probe's
     # too, holds no detail its neighbours saw: their feature misses it by a sixth of a pixel)
-    probe((around & (grid >= 0), BETWEEN_PROBE, lambda agree, flat, own: agree & flat,
-           None if smooth is None else same[band].ravel()),
-          (~around & (grid >= 0) & (sides[grid] >= EDGE_PROBE), EDGE_PROBE,
-           lambda agree, flat, own: own | (agree & ~flat), None))
-    # the grids, coarsest first, in one job
-    finest = [(np.flatnonzero(grid == k) + first, n) for k, (n, _) in enumerate(GRIDS)]
-    finest = [(pixels.astype(np.uint32), n) for pixels, n in finest if len(pixels)]
-    for pixels, n in finest:
-        estimate.admit(len(pixels), n * n)
-    if finest:
-        job = GridJob(width, height, np.concatenate([pixels for pixels, _ in finest]),
-                      np.concatenate([np.full(len(pixels), n) for pixels, n in finest]))
-        trace_level(chunker, job, values, offset)
-        levels += [Level(pixels, n) for pixels, n in finest]
+    probe(around & (grid >= 0), BETWEEN_PROBE, lambda agree, flat, own: agree & flat,
+          None if smooth is None else same[band].ravel())
+    probe(~around & (grid >= 0) & (sides[grid] >= EDGE_PROBE), EDGE_PROBE,
+          lambda agree, flat, own: own | (agree & ~flat))
+    for k, (n, _) in enumerate(GRIDS):
+        pixels = (np.flatnonzero(grid == k) + first).astype(np.uint32)
+        if len(pixels):
+            estimate.admit(len(pixels), n * n)
+            trace_level(chunker, Job(width, height, n * n, pixels=pixels), values, offset)
+            levels.append(Level(pixels, n))
     return Plan(chunker.sensor, width, height, spp, threshold, levels)
 
 
 def trace_level(chunker, job, values, offset=0):
-    """Trace ``job``'s (a GridJob's) pixels through ``chunker``, each one's box-filtered
-    value written into ``values`` ((H * W, 3), by pixel number less ``offset``)."""
+    """Trace ``job``'s pixels through ``chunker``, each one's box-filtered value written into
+    ``values`` ((H * W, 3), by pixel number less ``offset``)."""
     def visit(start, count, color):
-        for a, b, samples in grid_samples(job, start, count, color):
-            values[job.pixels[start + a:start + b] - offset] = sample_means(samples)
+        means = pixel_means(color, count, job.spp)
+        values[job.pixels[start:start + count] - offset] = dr.ravel(means).numpy().reshape(-1, 3)
 
     chunker.run(job, visit)
 
 
 def trace_probe(chunker, job, signed=None):
-    """Trace ``job``'s (a GridJob's) pixels through ``chunker``: ((count, 3) float32, each
-    pixel's box-filtered value; (count,) float32, the largest difference in one channel
-    between two of its samples; (camera rays,) uint32, its samples' path signatures,
-    pixel-major as the job's lanes, with ``signed`` (``Tracer.trace``'s), else None)."""
+    """Trace ``job``'s pixels through ``chunker``: ((count, 3) float32, each pixel's
+    box-filtered value; (count,) float32, the largest difference in one channel between
+    two of its samples; (count, spp) uint32, its samples' path signatures, with ``signed``
+    (``Tracer.trace``'s), else None)."""
     means = np.empty((job.count, 3), np.float32)
     spread = np.empty(job.count, np.float32)
-    paths = None if signed is None else np.empty(job.first_lane[-1], np.uint32)
+    paths = None if signed is None else np.empty((job.count, job.spp), np.uint32)
 
     def visit(start, count, color, path=None):
-        for a, b, samples in grid_samples(job, start, count, color):
-            means[start + a:start + b] = sample_means(samples)
-            spread[start + a:start + b] = (samples.max(axis=1) - samples.min(axis=1)).max(-1)
+        means[start:start + count] = \
+            dr.ravel(pixel_means(color, count, job.spp)).numpy().reshape(-1, 3)
+        samples = dr.ravel(color).numpy().reshape(count, job.spp, 3)
+        spread[start:start + count] = (samples.max(axis=1) - samples.min(axis=1)).max(axis=-1)
         if path is not None:
-            paths[job.first_lane[start]:job.first_lane[start + count]] = path.numpy()
+            paths[start:start + count] = path.numpy().reshape(count, job.spp)
 
     chunker.run(job, visit, signed=signed)
     return means, spread, paths

@@ -31,20 +31,10 @@ def stratum_offset(s, spp):
     n = int(round(spp ** 0.5))
     if n * n == spp:
         row = s // n
-        return grid_offset(s - row * n, row, n)
+        return mi.Point2f((mi.Float(s - row * n) + 0.5) / n, (mi.Float(row) + 0.5) / n)
     x = (mi.Float(s) + 0.5) / spp
     y = dr.fma(mi.Float(s), GOLDEN, 0.5)
     return mi.Point2f(x, y - dr.floor(y))
-
-
-def grid_offset(column, row, n):
-    """Position in [0, 1)^2 of the centre of stratum (``column``, ``row``) (UInt32) of an n x n
-    grid of strata over a pixel, counted from its top left. ``n``: an int, or by lane the
-    Float 1 / n (Dr.Jit divides by an int as it multiplies by its Float reciprocal: the same
-    floats either way)."""
-    if isinstance(n, int):
-        return mi.Point2f((mi.Float(column) + 0.5) / n, (mi.Float(row) + 0.5) / n)
-    return mi.Point2f((mi.Float(column) + 0.5) * n, (mi.Float(row) + 0.5) * n)
 
 
 def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None, footprint=False):
@@ -72,21 +62,6 @@ def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None, fo
     film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
                           (mi.Float(row) + offset.y) / height)
     return sample(sensor, film_pos, spp ** -0.5 if footprint else None)
-
-
-def grid_rays(sensor, width, height, pixel, column, row, rcp_n, footprint=None):
-    """Camera rays each of its own pixel and grid: lane i is the sample in stratum
-    (``column[i]``, ``row[i]``) of the n x n grid of pixel ``pixel[i]`` (UInt32 arrays of
-    one width; ``rcp_n``: 1 / n, a Float), the same ray, bit for bit, as :func:`camera_rays`
-    gives that sample at spp = n^2 (sample row n + column). ``footprint``: None, or each
-    lane's footprint (a Float, pixels: (n^2) ** -0.5, as camera_rays computes it). (The
-    strata come from the host: an integer division by a lane's n would trap in the lanes
-    past the end of an LLVM kernel's last packet.)"""
-    offset = grid_offset(column, row, rcp_n)
-    row = pixel // width
-    film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
-                          (mi.Float(row) + offset.y) / height)
-    return sample(sensor, film_pos, footprint)
 
 
 def corner_rays(sensor, width, height, first, count, footprint=False):

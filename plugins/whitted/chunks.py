@@ -69,8 +69,9 @@ class Job:
         self.count = (len(self.pixels) if pixels is not None  # how many pixels
                       else (width * height - first if count is None else count))
         # whether the camera rays are traced as coherent packets (Tracer.trace): a range's
-        # neighbouring rays are; a list's packets would depend on what else the list holds
-        self.coherent = pixels is None
+        # neighbouring rays are, and a list's whose pixels are each whole packets (PACKET);
+        # other lists' rays alone: their packets would depend on what else the list holds
+        self.coherent = pixels is None or spp % PACKET == 0
         self.total = width * height  # the pixels of the image's numbering
 
     def rays(self, sensor, start, count, footprint=False):
@@ -95,7 +96,8 @@ class Job:
     def packet_margins(self, start, count):
         """(pixels before, pixels after) the job's pixels start .. start + count - 1 that
         complete their first and last packets of PACKET lanes, the lanes numbered from the
-        image's first (a list: 0, 0; its rays are traced alone, not as packets)."""
+        image's first (a list: 0, 0; its pixels are each whole packets, or its rays are
+        traced alone)."""
         if self.pixels is not None:
             return 0, 0
         unit = PACKET // math.gcd(self.spp, PACKET)  # pixels of a whole number of packets

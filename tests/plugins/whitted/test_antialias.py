@@ -179,38 +179,6 @@ def test_antialiasing_is_deterministic_and_independent_of_the_chunks(mi):
     assert not np.array_equal(plain.integrator.render_array(plain.scene), first)
 
 
-def test_one_job_of_several_grids_gives_each_pixel_its_own_grids_samples(mi):
-    """A GridJob (the refinement's grids, or its probes, traced as one wavefront): each
-    pixel's box-filtered value is that of a Job of its own n x n grid, bit for bit, in
-    chunks that cut across the grids; and it counts each pixel's n^2 camera rays."""
-    import drjit as dr
-    import raymitsuba
-    from raymitsuba.plugins.whitted.antialias import GridJob, trace_level
-    from raymitsuba.plugins.whitted.camera import pixel_means
-    from raymitsuba.plugins.whitted.chunks import Chunker, Job
-
-    loaded = raymitsuba.load("scenes/whitted.ray", width=40, height=30, aa=0.02)
-    integrator, scene = loaded.integrator, loaded.scene
-    sensor = scene.sensors()[0]
-    pixels = np.array([5, 17, 301, 302, 640, 641, 1199], np.uint32)
-    sides = [2, 2, 3, 1, 12, 6, 4]
-    job = GridJob(40, 30, pixels, sides)
-    assert job.samples(0, job.count) == 4 + 4 + 9 + 1 + 144 + 36 + 16
-    assert job.fitting(0, 8) == 2 and job.fitting(2, 10) == 2 and job.fitting(4, 10) == 1
-
-    def chunker(max_pixels=None):
-        return Chunker(integrator.tracer, scene, sensor, integrator.memory_budget,
-                       max_pixels=max_pixels)
-
-    together = np.zeros((40 * 30, 3), np.float32)
-    trace_level(chunker(max_pixels=3), job, together)
-    for pixel, n in zip(pixels, sides):
-        alone = []
-        chunker().run(Job(40, 30, n * n, pixels=[pixel]), lambda start, count, color:
-                      alone.append(dr.ravel(pixel_means(color, count, n * n)).numpy()))
-        assert np.array_equal(together[pixel], alone[0]), (pixel, n)
-
-
 # The glass scene's sphere fills the frame, and the spot scene's board is filtered: one path
 # throughout, which anti-aliasing does not refine (signature.py). A triangle in front gives
 # each pixels to refine, along edges that neither key moves: dark and opaque in front of the

@@ -66,7 +66,8 @@ def test_a_ranges_chunks_are_traced_in_whole_packets_of_the_images_lanes(mi):
     assert Job(37, 5, 4, first=41).packet_margins(0, 3) == (1, 0)  # 4 pixels a packet
     assert Job(37, 5, 16, first=41).packet_margins(0, 3) == (0, 0)  # one pixel a packet
     assert Job(37, 5, 1, pixels=[3, 9]).packet_margins(0, 2) == (0, 0)  # a list: rays alone
-    assert not Job(37, 5, 1, pixels=[3, 9]).coherent and band.coherent
+    assert not Job(37, 5, 9, pixels=[3, 9]).coherent and band.coherent
+    assert Job(37, 5, 144, pixels=[3, 9]).coherent  # each pixel 9 whole packets
 
 
 def test_anti_aliasing_does_not_depend_on_the_memory_budget_where_rays_tie(mi):
