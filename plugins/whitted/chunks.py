@@ -1,11 +1,12 @@
 """Rendering in chunks of bounded size: which camera rays are traced together.
 
 A *job* is a set of pixels (a contiguous range, or an explicit list) and a number of
-samples per pixel (or, anti-aliasing's ``GridJob``, a number for each pixel). Its interface
-to the :class:`Chunker`: ``count`` (pixels), ``rays(sensor, start, count, footprint)``,
-``samples(start, count)`` (camera rays of pixels start .. start + count - 1) and
+samples per pixel. Its interface to the :class:`Chunker` (:class:`Job`'s; anti-aliasing's
+``CornerJob`` has it too): ``count`` (pixels), ``rays(sensor, start, count, footprint)``,
+``samples(start, count)`` (camera rays of pixels start .. start + count - 1),
 ``fitting(start, lanes)`` (how many pixels from start fit in that many camera rays, at least
-one). It is traced in *chunks*: consecutive pixels of the job, all the
+one), ``coherent`` and ``packet_margins(start, count)`` (its rays traced in packets, see
+PACKET). It is traced in *chunks*: consecutive pixels of the job, all the
 samples of a pixel in the same chunk (so the box filter is per chunk), each chunk's
 whole ray tree at once. A pixel's value does not depend on the chunk it is in, so the
 image is the same, bit for bit, however it is split.
@@ -215,8 +216,9 @@ class Chunker:
                 if count == 1:
                     raise BudgetError(
                         f"the ray tree of one pixel ({job.samples(start, 1)} samples) exceeds "
-                        f"the memory budget ({self.budget / GIB:.2g} GB): use a smaller --max-depth, "
-                        "a --bailout (e.g. 1e-3) or a larger --memory-budget") from None
+                        f"the memory budget ({self.budget / GIB:.2g} GB): use a smaller "
+                        "--max-depth, a --bailout (e.g. 1e-3) or a larger --memory-budget"
+                    ) from None
                 count = self._whole_packets(job, start, max(count // 2, 1))
 
     def _trace(self, job, start, count, ad, max_rays, lazy=False, record=None, queries=None,
