@@ -433,9 +433,10 @@ class Terms:
         found = None
         if follow:
             found = []
+            lit = [v.numpy() for v in first["lit"]]  # (once: every set reads them)
             for i, points_i in enumerate(paths):
                 lanes = points_i + i * count
-                found.append(Path.of([v.numpy()[lanes] for v in first["lit"]],
+                found.append(Path.of([v[lanes] for v in lit],
                                      [v[lanes] for v in chain["chain_shape"]],
                                      [v[lanes] for v in chain["chain_lit"]], len(lanes)))
         if not wanted:
