@@ -17,7 +17,8 @@ reflection + refraction tree) and each sample count it measures:
   camera rays; raywhitted also traces the reflected and refracted rays, whose
   number per camera ray is printed as rays/cam);
 * process: wall time of the whole ``raymitsuba render`` command;
-* POV-Ray: wall time of ``povray`` on an export of the same scene, when installed;
+* POV-Ray: wall time of ``povray`` on an export of the same scene (installed with apt-get
+  where missing and possible, ``povray.ensure_povray``; else its rows are skipped);
 
 and for gradients: one step (primal + reverse-mode backpropagation of an L2
 loss, to all material parameters and to the Phong terms only) at 256x256 / 8 spp
@@ -439,6 +440,9 @@ def main():
         print(json.dumps(fn(**job)))
         return
 
+    from povray import ensure_povray
+
+    ensure_povray()
     repeats = 3 if args.quick else 7
     w, h = args.width, args.height
     work = tempfile.mkdtemp(prefix="raymitsuba-bench-")

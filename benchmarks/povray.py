@@ -1,4 +1,5 @@
-"""Export a parsed .RAY scene to POV-Ray's scene language, for the benchmark only.
+"""Export a parsed .RAY scene to POV-Ray's scene language, for the benchmarks only, and
+install POV-Ray where it is missing (:func:`ensure_povray`).
 
 The export keeps the geometry, lights and the cost-relevant parts of the
 materials (Phong highlight, mirror reflection, refraction with an index of
@@ -12,9 +13,24 @@ become one POV-Ray ``mesh`` per mesh of the model).
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+
 import numpy as np
 
 from raymitsuba.model import LightKind, ObjectKind, Scene
+
+
+def ensure_povray():
+    """Install POV-Ray 3.7 (Debian's ``povray``) with apt-get if it is missing and that is
+    possible (root, apt-get); otherwise the benchmarks skip its rows."""
+    if shutil.which("povray") or not shutil.which("apt-get") or os.geteuid() != 0:
+        return
+    print("installing povray with apt-get ...", flush=True)
+    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
+    subprocess.run(["apt-get", "update", "-qq"], capture_output=True, env=env)
+    subprocess.run(["apt-get", "install", "-y", "-qq", "povray"], capture_output=True, env=env)
 
 
 def vec(v):

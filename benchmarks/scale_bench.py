@@ -208,16 +208,6 @@ def povray_command(path, workdir):
             "+WT2", "-A"]
 
 
-def ensure_povray():
-    """Install POV-Ray with apt-get if it is missing and that is possible (root, apt)."""
-    if shutil.which("povray") or not shutil.which("apt-get") or os.geteuid() != 0:
-        return
-    print("installing povray with apt-get ...", flush=True)
-    env = dict(os.environ, DEBIAN_FRONTEND="noninteractive")
-    subprocess.run(["apt-get", "update", "-qq"], capture_output=True, env=env)
-    subprocess.run(["apt-get", "install", "-y", "-qq", "povray"], capture_output=True, env=env)
-
-
 def measure_size(family, n, args, workdir):
     """Every figure of one scene: medians over ``args.repeat`` runs (None: timed out)."""
     path = os.path.join(workdir, f"{family}_{n}.ray")
@@ -313,6 +303,8 @@ def main():
         return
     args.repeat = args.repeat or (1 if args.quick else 3)
     ladders = QUICK_LADDERS if args.quick else LADDERS
+    from povray import ensure_povray
+
     ensure_povray()
     workdir = tempfile.mkdtemp(prefix="raymitsuba-scale-")
     print(f"raymitsuba scale benchmark: {WIDTH}x{HEIGHT}, 1 spp; seconds (peak: MB of the whole "
