@@ -18,10 +18,6 @@ from .lattice import (CHAIN_CHECKER, CHAIN_SHADOW, CHAIN_TIR, CHAIN_VISIBILITY, 
 from .terms import _evaluated, stacked
 
 CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
-# the chain's keys of a sample whose chain ended before the bounce (those of the first hit
-# are set for every sample)
-DEFAULT = {"chain_shape": STOP, "chain_prim": 0, "chain_t": np.inf, "chain_cell": 0,
-           "chain_tir": False, "chain_lit": False, "chain_occluder": NO_HIT}
 
 
 def _merge(mask, si, other):

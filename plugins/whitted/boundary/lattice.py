@@ -1,6 +1,6 @@
 """The lattice and the constants its keys and pairs share (the package docstring: "The
-lattice", "Pairs"): the keys' sentinels (NO_HIT, STOP), the kinds of pairs and a pair's
-points, the angle of a crease; a lattice point's flat position and the readers of the lattice's arrays at it; the
+lattice", "Pairs"): the keys' sentinels (NO_HIT, STOP) and the chain's keys past its end
+(DEFAULT), the kinds of pairs and a pair's points, the angle of a crease; a lattice point's flat position and the readers of the lattice's arrays at it; the
 lattice point of a camera ray (:func:`lattice_index`) and the ring around the image
 (:func:`ring_points`); the host's copies of the keys."""
 
@@ -13,6 +13,10 @@ STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
 KINDS = 7  # kinds of pairs:
 VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW = range(KINDS)
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
+# The chain's keys of a sample whose chain ended before a bounce (those of the first hit are
+# set for every sample): what a bounce past a chain's end holds
+DEFAULT = {"chain_shape": STOP, "chain_prim": 0, "chain_t": np.inf, "chain_cell": 0,
+           "chain_tir": False, "chain_lit": False, "chain_occluder": NO_HIT}
 # Two faces of a mesh whose unit normals' dot product is below this (60 degrees apart) lie
 # across a crease: more than the 45 degrees between neighbours of the coarsest tessellation
 # (8 segments), less than a cap's 90 degrees to a cylinder's side

@@ -9,8 +9,8 @@ import numpy as np
 
 from ..arrays import jit_array
 from ..lift import lifted_point
-from .chain import CHAIN_DEPTH, DEFAULT
-from .lattice import NO_HIT, _host, _host_keys, lattice_index, ring_points
+from .chain import CHAIN_DEPTH
+from .lattice import DEFAULT, NO_HIT, _host, _host_keys, lattice_index, ring_points
 from .spot import has_cone, spot_cosine
 
 # bytes of one sample's keys (shape, face, distance, normal, checker cell, the chain's first

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..arrays import jit_array
 from ..hits import MESH
-from .lattice import (CHAIN_SHADOW, CHAIN_VISIBILITY, CHECKER, NO_HIT, POINTS, SHADOW, STOP,
+from .lattice import (CHAIN_SHADOW, CHAIN_VISIBILITY, CHECKER, DEFAULT, NO_HIT, POINTS, SHADOW,
                       VISIBILITY, _host, across_crease, at, flat, span)
 
 PAIRS_PER_CHUNK = 1 << 16
@@ -144,7 +144,8 @@ class Path(NamedTuple):
     """What the paths of n samples meet past their first hit (numpy): per light, whether it
     lights the first hit (``lit``, (n, lights)); per bounce of the specular chain, the shape
     met (``shapes``, (n, bounces)) and per light whether it lights it (``chain_lit``,
-    (n, bounces, lights)). Bounces past those held: as the chain's keys start (STOP, unlit)."""
+    (n, bounces, lights)). Bounces past those held: the chain's keys past its end
+    (lattice.DEFAULT: STOP, unlit)."""
 
     lit: np.ndarray
     shapes: np.ndarray
@@ -164,8 +165,8 @@ class Path(NamedTuple):
         """Per sample, whether two Paths of the same samples' count differ."""
         out = np.any(self.lit != other.lit, axis=1)
         bounces = max(self.shapes.shape[1], other.shapes.shape[1])
-        for mine, theirs, fill in ((self.shapes, other.shapes, STOP),
-                                   (self.chain_lit, other.chain_lit, False)):
+        for mine, theirs, fill in ((self.shapes, other.shapes, DEFAULT["chain_shape"]),
+                                   (self.chain_lit, other.chain_lit, DEFAULT["chain_lit"])):
             mine, theirs = (np.concatenate([a, np.full((len(a), bounces - a.shape[1])
                                                        + a.shape[2:], fill, a.dtype)], 1)
                             for a in (mine, theirs))
@@ -449,10 +450,12 @@ class Terms:
                 out[where] = first["lit"][j].numpy()[lanes[where]]
             elif k == CHAIN_VISIBILITY:
                 shape = chain["chain_shape"]
-                out[where] = shape[d][lanes[where]] if d < len(shape) else STOP
+                out[where] = shape[d][lanes[where]] if d < len(shape) else \
+                    DEFAULT["chain_shape"]
             else:
                 lit, flat_j = chain["chain_lit"], d * len(self.lights) + j
-                out[where] = lit[flat_j][lanes[where]] if flat_j < len(lit) else 0
+                out[where] = lit[flat_j][lanes[where]] if flat_j < len(lit) else \
+                    DEFAULT["chain_lit"]
         return Traced(colors, shapes, normals, out.reshape(sets, len(keyed)), found)
 
     def path_at(self, flat_points):
