@@ -141,29 +141,27 @@ class Traced(NamedTuple):
 
 
 class Path(NamedTuple):
-    """What the paths of n samples meet past their first hit (numpy): per light, whether it
-    lights the first hit (``lit``, (n, lights)); per bounce of the specular chain, the shape
-    met (``shapes``, (n, bounces)) and per light whether it lights it (``chain_lit``,
-    (n, bounces, lights)). Bounces past those held: the chain's keys past its end
-    (lattice.DEFAULT: STOP, unlit)."""
+    """What the specular chains of n samples meet past their first hit (numpy): per bounce,
+    the shape met (``shapes``, (n, bounces)) and per light whether it lights it
+    (``chain_lit``, (n, bounces, lights)). Bounces past those held: the chain's keys past its
+    end (lattice.DEFAULT: STOP, unlit). Not the lights of the first hit itself: a shadow
+    edge or terminator on the surface is no squeezed edge (:meth:`Terms.jump`)."""
 
-    lit: np.ndarray
     shapes: np.ndarray
     chain_lit: np.ndarray
 
     @classmethod
-    def of(cls, lit, shapes, chain_lit, n):
-        """A Path from per-light, per-bounce and per-(bounce, light) lists of n entries (a
-        bounce's lights in a row, as the lattice's ``chain_lit`` holds them)."""
-        lights, bounces = len(lit), len(shapes)
-        return cls(np.stack(lit, -1) if lights else np.zeros((n, 0), bool),
-                   np.stack(shapes, -1) if bounces else np.zeros((n, 0), np.uint32),
+    def of(cls, shapes, chain_lit, n, lights):
+        """A Path from per-bounce and per-(bounce, light) lists of n entries (a bounce's
+        ``lights`` in a row, as the lattice's ``chain_lit`` holds them)."""
+        bounces = len(shapes)
+        return cls(np.stack(shapes, -1) if bounces else np.zeros((n, 0), np.uint32),
                    np.stack(chain_lit, -1).reshape(n, bounces, lights) if bounces and lights
                    else np.zeros((n, bounces, lights), bool))
 
     def differs(self, other):
         """Per sample, whether two Paths of the same samples' count differ."""
-        out = np.any(self.lit != other.lit, axis=1)
+        out = np.zeros(len(self.shapes), bool)
         bounces = max(self.shapes.shape[1], other.shapes.shape[1])
         for mine, theirs, fill in ((self.shapes, other.shapes, DEFAULT["chain_shape"]),
                                    (self.chain_lit, other.chain_lit, DEFAULT["chain_lit"])):
@@ -312,12 +310,16 @@ class Terms:
         -> 8.3 %).
 
         A visibility pair's near side (the surface whose outline the edge is) whose traced
-        ray's path past the surface (:class:`Path`: the chain's shapes, the lights that reach
-        its hits) is not its sample's takes the sample's color: an edge squeezed between the
-        outline and the sample (a mirror ball's rim holds what lies just outside it,
-        unfolded, in a band thinner than the lattice at any k) moves with the outline
-        (docs/gradients.md, 'Edges on random scenes': seed 17's ball radius at 128 x 96,
-        k = 8, 40.5 % -> 5.7 % of the weighted sum)."""
+        ray's path past the surface (:class:`Path`: the specular chain's shapes and the
+        lights that reach each of its bounces) is not its sample's takes the sample's color:
+        an edge squeezed between the outline and the sample (a mirror ball's rim holds what
+        lies just outside it, unfolded, in a band thinner than the lattice at any k) moves
+        with the outline (docs/gradients.md, 'Edges on random scenes': seed 17's ball radius
+        at 128 x 96, k = 8, 40.5 % -> 5.7 % of the weighted sum). Not where only the lights
+        of the surface itself differ: a shadow edge or the terminator on it is foreshortened
+        near the outline, not squeezed into it, and is resolved as k grows (taking the
+        sample's color there cost the random scenes' diffuse balls, seeds 11 and 25,
+        their radius at every k)."""
         count = len(kind)
         rim = max(RIM_LIMIT, FILM_ULPS * self.k * max(self.width, self.height) * 2.0 ** -24)
         limit = np.where(kind == VISIBILITY, rim, LIMIT)
@@ -434,12 +436,11 @@ class Terms:
         found = None
         if follow:
             found = []
-            lit = [v.numpy() for v in first["lit"]]  # (once: every set reads them)
             for i, points_i in enumerate(paths):
                 lanes = points_i + i * count
-                found.append(Path.of([v[lanes] for v in lit],
-                                     [v[lanes] for v in chain["chain_shape"]],
-                                     [v[lanes] for v in chain["chain_lit"]], len(lanes)))
+                found.append(Path.of([v[lanes] for v in chain["chain_shape"]],
+                                     [v[lanes] for v in chain["chain_lit"]], len(lanes),
+                                     len(self.lights)))
         if not wanted:
             return Traced(colors, shapes, normals, None, found)
         lanes = np.concatenate([keyed + i * count for i in range(sets)])  # (of every set)
@@ -460,9 +461,9 @@ class Terms:
 
     def path_at(self, flat_points):
         """The :class:`Path` s of the lattice's samples at ``flat_points``, as it holds them."""
-        return Path.of([at(plane, flat_points) for plane in self.lit],
-                       [at(plane, flat_points) for plane in self.chain_shape],
-                       [at(plane, flat_points) for plane in self.chain_lit], len(flat_points))
+        return Path.of([at(plane, flat_points) for plane in self.chain_shape],
+                       [at(plane, flat_points) for plane in self.chain_lit], len(flat_points),
+                       len(self.lights))
 
     def switch(self, L, axis, key_l, kind, light, depth, steps=SWITCH_STEPS):
         """Where along the pairs from L (lattice points, ``axis``) the edge's key (see
