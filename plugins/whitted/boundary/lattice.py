@@ -1,8 +1,9 @@
 """The lattice and the constants its keys and pairs share (the package docstring: "The
 lattice", "Pairs"): the keys' sentinels (NO_HIT, STOP) and the chain's keys past its end
-(DEFAULT), the kinds of pairs and a pair's points, the angle of a crease; a lattice point's flat position and the readers of the lattice's arrays at it; the
-lattice point of a camera ray (:func:`lattice_index`) and the ring around the image
-(:func:`ring_points`); the host's copies of the keys."""
+(DEFAULT), the kinds of pairs and a pair's points, the angle of a crease; a lattice point's
+flat position and the readers of the lattice's arrays at it; the lattice point of a camera
+ray (:func:`lattice_index`) and the ring around the image (:func:`ring_points`); the host's
+copies of the keys."""
 
 import drjit as dr
 import mitsuba as mi

@@ -413,7 +413,9 @@ class Terms:
             ray = self.film_rays(*(np.concatenate([side[i] for side in points])
                                    for i in range(2)))
             color = self.tracer.trace(self.scene, ray, self.terms, first_hit=first_hit).color
-            dr.eval(color, seen, [keys[0]["lit"]] if wanted or follow else [])
+            # (the first hit's lights: read for the keyed shadow edges only; a Path is the
+            # chain's)
+            dr.eval(color, seen, [keys[0]["lit"]] if wanted else [])
             colors = _host(color).reshape(sets, count, 3)
             shapes = seen[0].numpy().reshape(sets, count)
             normals = _host(seen[1]).reshape(sets, count, 3)
