@@ -196,9 +196,9 @@ class Boundary(Samples, Pairs, Terms, Visibility, Shadows, Checker, Chain, Tir, 
         # The lattice's keys ((H k + 2, W k + 2) arrays, the ring's included: see
         # trace_keys): set as they are read. The specular chain's (see chain_step): a list
         # with an array per bounce traced (none past the last bounce any chain reaches): the
-        # shape and face hit, its distance, the checker cell there and whether the bounce
-        # was a total internal reflection; lit and what blocks it, per bounce and light
-        # (index d * lights + j)
+        # shape and face hit, its distance, the face's normal (x, y, z planes: index d * 3 +
+        # c), the checker cell there and whether the bounce was a total internal reflection;
+        # lit and what blocks it, per bounce and light (index d * lights + j)
         self.shape = self.prim = self.t = self.cell = None
         self.normal, self.lit, self.occluder = [], [], []  # (normal: its x, y, z planes)
         # the samples' colors as the adjoint pass left them: (first lane, Color3f) per chunk,
@@ -211,3 +211,4 @@ class Boundary(Samples, Pairs, Terms, Visibility, Shadows, Checker, Chain, Tir, 
         self.adopted = False  # whether they are those a primal render recorded (adopt)
         self.chain_shape, self.chain_prim, self.chain_t, self.chain_cell = [], [], [], []
         self.chain_tir, self.chain_lit, self.chain_occluder = [], [], []
+        self.chain_normal = []

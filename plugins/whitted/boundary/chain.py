@@ -40,10 +40,10 @@ class Chain:
         """The keys of the specular chain (numpy lists, a bounce each: ``chain_shape``, ...,
         ``chain_tir``) from its first rays ``ray``, where ``alive`` (the first hits with a
         next ray), ``tir``: where that ray is a total internal reflection. Each bounce's keys
-        are one evaluation."""
+        are one evaluation (``chain_normal``: the face's normal, three planes a bounce)."""
         scene, table = self.scene, self.terms.geometry
-        out = {"chain_" + name: [] for name in ("shape", "prim", "t", "cell", "tir", "lit",
-                                                 "occluder")}
+        out = {"chain_" + name: [] for name in ("shape", "prim", "t", "normal", "cell", "tir",
+                                                 "lit", "occluder")}
         for _ in range(CHAIN_DEPTH):
             if not dr.any(alive):  # (the chain's keys past its end: as the lattice starts)
                 break
@@ -55,9 +55,10 @@ class Chain:
             at_tir = alive & tir  # (total internal reflection at the bounce that led here)
             alive = found & keys_k["go"]
             ray, tir = keys_k["next"], keys_k["tir"]
-            dr.eval(keys_k, at_tir, alive)
+            dr.eval(keys_k, si_k.n, at_tir, alive)
             for name, value in _host_keys(keys_k).items():  # (lit, occluder: one per light)
                 out["chain_" + name] += value if isinstance(value, list) else [value]
+            out["chain_normal"] += [c.numpy() for c in si_k.n]  # (its x, y, z planes)
             out["chain_tir"].append(at_tir.numpy())
         return out
 

@@ -98,8 +98,8 @@ class Pairs:
         ring: a pair has a sample of the image."""
         planes = [self.shape, self.prim, *self.lit, self.cell[0], self.cell[1]]
         for d in range(bounces):
-            planes += [self.chain_shape[d], self.chain_tir[d], self.chain_cell[d][0],
-                       self.chain_cell[d][1]]
+            planes += [self.chain_shape[d], self.chain_prim[d], self.chain_tir[d],
+                       self.chain_cell[d][0], self.chain_cell[d][1]]
             planes += self.chain_lit[d * len(self.lights):(d + 1) * len(self.lights)]
         # Each entry against the one ``step`` further in row-major order (its right or lower
         # neighbour), the planes flat: comparisons of contiguous arrays, three times faster
@@ -126,7 +126,7 @@ class Pairs:
         """(kind (int8; -1: none, or left out), light, depth) of the pairs (L, R) (numpy
         (Y, X) each, one entry per pair): what edge lies between their samples."""
         L, R = flat(L, self.cols), flat(R, self.cols)  # (read at: see flat)
-        visibility = self.surface_differs(L, R, self.kind_of)
+        visibility = self.surface_differs(self.shape, self.prim, self.normal, L, R)
         kind = np.full(visibility.shape, -1, np.int8)  # (small types: a pass per array)
         light = np.zeros(visibility.shape, self.light_type)
         kind[visibility] = VISIBILITY
@@ -157,7 +157,10 @@ class Pairs:
                 break
             cs_l, cs_r = at(self.chain_shape[d], L), at(self.chain_shape[d], R)
             tir = at(self.chain_tir[d], L) != at(self.chain_tir[d], R)
-            shape_differs = cs_l != cs_r
+            # (another surface: another shape, or a face of a mesh across a crease, as at
+            # the first hit)
+            shape_differs = self.surface_differs(self.chain_shape[d], self.chain_prim[d],
+                                                 self.chain_normal[3 * d:3 * d + 3], L, R)
             lines = crossed(self.chain_cell[d], L, R)
             shadows = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
             for j in range(len(self.lights)):

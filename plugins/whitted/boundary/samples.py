@@ -15,8 +15,8 @@ from .spot import has_cone, spot_cosine
 
 # bytes of one sample's keys (shape, face, distance, normal, checker cell, the chain's first
 # ray, whether it goes on and is a total internal reflection and, per bounce of the chain,
-# shape, face, distance, cell, TIR flag) and per light (lit, blocker)
-BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 8 + 24 + 2 + CHAIN_DEPTH * (4 + 4 + 4 + 8 + 1)
+# shape, face, distance, normal, cell, TIR flag) and per light (lit, blocker)
+BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 8 + 24 + 2 + CHAIN_DEPTH * (4 + 4 + 4 + 12 + 8 + 1)
 BYTES_PER_LIGHT = (1 + 8) * (1 + CHAIN_DEPTH)  # lit and blocker, first hit and chain
 
 

@@ -32,22 +32,25 @@ class Faces:
 class Visibility:
     """The visibility edges of :class:`Boundary` (a mixin of Boundary)."""
 
-    def surface_differs(self, L, R, kind_of):
+    def surface_differs(self, shape, prim, normal, L, R):
         """Whether the samples of the pairs (L, R) (numpy flat positions, see :func:`flat`)
-        see different surfaces: another shape (or one a miss), another face of a flat mesh
-        that is not coplanar with the first, or a face of a smooth mesh across a crease (a
-        tessellated cylinder's or cone's cap and side: one mesh, whose vertex normals jump
-        at the rim, and the shading with them), where the faces' normals differ by more than
-        CREASE."""
-        sl, sr = at(self.shape, L), at(self.shape, R)
+        see different surfaces, by the lattice's keys ``shape``, ``prim`` and ``normal``
+        (the face's normal: x, y, z planes) of the first hit or of a bounce of the chain:
+        another shape (or one a miss, or a chain that ended), another face of a flat mesh
+        that is not coplanar with the first (a glass box's faces, seen from inside along the
+        chain), or a face of a smooth mesh across a crease (a tessellated cylinder's or
+        cone's cap and side: one mesh, whose vertex normals jump at the rim, and the shading
+        with them), where the faces' normals differ by more than CREASE."""
+        kind_of = self.kind_of
+        sl, sr = at(shape, L), at(shape, R)
         differs = sl != sr
-        faces = ~differs & (sl != NO_HIT) & (at(self.prim, L) != at(self.prim, R))
+        faces = ~differs & (sl < STOP) & (at(prim, L) != at(prim, R))
         if not faces.any():
             return differs
         kind = kind_of[np.minimum(sl[faces], len(kind_of) - 1)]
         mesh, smooth = kind & MESH != 0, kind & SMOOTH != 0
         where = np.flatnonzero(faces)[mesh]
-        nl, nr = (np.stack([at(c, side[where]) for c in self.normal], -1) for side in (L, R))
+        nl, nr = (np.stack([at(c, side[where]) for c in normal], -1) for side in (L, R))
         apart = np.where(smooth[mesh], across_crease(nl, nr),
                          np.linalg.norm(nl - nr, axis=-1) > COPLANAR)
         differs[where[apart]] = True
@@ -90,9 +93,10 @@ class Visibility:
     def inside(self, table, ray, faces, edge=None, from_eye=False):
         """The inside function of each ray's primitive (``faces``: :class:`Faces`): > 0 where
         the ray meets it (see the package docstring). For a triangle, ``edge`` (an Int32 per
-        lane: 0, 1, 2, or -1 for the least of the three) picks the edge function; an
-        unbounded plane seen by the camera's rays (``from_eye``, see :meth:`edge_functions`)
-        has :meth:`towards_plane`."""
+        lane: 0, 1, 2, or -1 for the least of the three) picks the edge function
+        (``from_eye``: see :meth:`edge_functions`). An unbounded plane has
+        :meth:`towards_plane`, whichever ray sees it: the camera's, or one along the
+        specular chain (the horizon seen in a mirror or through glass)."""
         valid, kind, row, prim = faces.valid, faces.kind, faces.row, faces.prim
         out = mi.Float(-1.0)
         d = dr.normalize(ray.d)
@@ -110,7 +114,7 @@ class Visibility:
                 chosen = dr.select(edge == 0, e[0], dr.select(edge == 1, e[1], e[2]))
                 g = dr.select(edge >= 0, chosen, g)
             out = dr.select(mesh, g, out)
-            if from_eye and table.has_planes:  # (an unbounded plane's outline: its horizon)
+            if table.has_planes:  # (an unbounded plane's outline: its horizon)
                 plane = mesh & ((kind & PLANE) != 0)
                 out = dr.select(plane, self.towards_plane(table, ray, d, row, prim, plane), out)
         return out
@@ -122,7 +126,7 @@ class Visibility:
         lane's face, from the side of it its origin lies on; 0 at the horizon, where the plane
         vanishes. (Its faces' edges are edges of rings that crowd towards the horizon, many
         to a lattice unit; the one a ray hit is not where the plane ends, and moves otherwise:
-        the horizon stays put when the eye moves.)"""
+        the horizon stays put when the eye, or a chain ray's origin, moves.)"""
         _, (p0, p1, p2) = table.corners(row, prim, plane)
         n = dr.normalize(dr.cross(p1 - p0, p2 - p0))
         above = dr.dot(dr.detach(n), dr.detach(ray.o - p0)) >= 0

@@ -1,6 +1,7 @@
-"""Edges seen along the specular chain (plugins/whitted/boundary/chain.py): a shadow seen
-in a mirror against finite differences (at k = 4, per-pixel relative L2 measured 6.1 %),
-and chains that reach the last bounce followed."""
+"""Edges seen along the specular chain (plugins/whitted/boundary/chain.py) against finite
+differences: a shadow seen in a mirror (at k = 4, per-pixel relative L2 measured 6.1 %),
+the horizon seen through a moving glass ball, and a moving glass box's inner creases; and
+chains that reach the last bounce followed."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 from support_edges import (MIRRORED_SHADOW, assert_matches_finite_differences, finite_difference,
-                           forward, pairs_of_a_step, weights)
+                           forward, pairs_of_a_step, relative_l2, weights)
 
 
 @pytest.mark.parametrize("text, key, direction, h", [
@@ -88,3 +89,81 @@ def test_an_edge_seen_in_a_mirror_balls_rim_keeps_its_jump(mi):
     grad = forward(mi, MIRROR_BALL, "sphere1.radius", (1.0,), 64)
     w = weights()
     assert abs(np.sum(w * (grad - reference))) < 0.12 * np.sum(np.abs(w * reference))
+
+
+# a glass ball over an unbounded floor: the floor's horizon, seen through the ball
+GLASS_OVER_HORIZON = """\
+eye 0 0.5 5
+lookat 0 0 0
+fov 40
+background 0.2 0.3 0.4
+light 1 1 1 point 2 3 4
+light 0.2 0.2 0.2 ambient
+material 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1
+translate 0 -1 0
+plane
+reset
+material 0.9 0.6 0.4 0.1 0.1 0.3 20 0.1 0.85 1.5
+translate 0.1 0 0
+sphere
+"""
+
+
+def test_the_horizon_seen_through_a_moving_glass_ball_matches_finite_differences(mi):
+    """The floor's horizon seen through a glass ball, the ball moved: along the chain the
+    floor's g is its horizon's (``Visibility.towards_plane``), as for the camera's rays. It
+    was the edge function of whichever far ring of the floor a ray hit, which moves with
+    nothing. Measured at k = 4 (k = 8): the weighted sum 3.3 % (0.3 %) of the sum of the
+    terms' sizes off, per-pixel relative L2 12.7 % (8.9 %); with the ring's edge function
+    35 % (26 %) and 76 % (72 %)."""
+    assert_matches_finite_differences(mi, GLASS_OVER_HORIZON, "translate2.offset",
+                                      (1.0, 0.3, 0.0), 0.01)
+
+
+def _box(half):
+    """The 12 triangles of an axis-aligned box of half-sizes ``half`` about the origin."""
+    x, y, z = half
+    corners = [(sx * x, sy * y, sz * z) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    quads = ((0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3))
+    lines = []
+    for a, b, c, d in quads:
+        for tri in ((a, b, c), (a, c, d)):
+            lines.append("triangle " + "  ".join(" ".join(f"{v:g}" for v in corners[i])
+                                                  for i in tri))
+    return "\n".join(lines) + "\n"
+
+
+# a glass box (one mesh of triangles) over a floor, seen from above: from inside, its
+# faces meet at creases, and which face a refracted ray leaves by switches across them
+GLASS_BOX = """\
+eye -3 3 4
+lookat 0 -0.3 0
+fov 40
+background 0.1 0.3 0.15
+light 0.7 0.7 0.6 point 1.5 3 -2
+light 0.2 0.2 0.2 ambient
+material 0.8 0.75 0.9 0.25 0.6 0.4 10 0 0 1
+translate 0 -1 0
+plane
+reset
+material 0.5 0.9 0.8 0.1 0.1 0.3 20 0.1 0.85 1.35
+translate 0.1 -0.4 0
+rotateY 50
+""" + _box((0.5, 0.5, 0.5))
+
+
+def test_a_moving_glass_boxs_inner_creases_seen_along_the_chain_have_their_terms(mi):
+    """A glass box moved: a ray refracted into it leaves by one face or another, and what it
+    meets beyond switches where two faces meet (an edge along the chain between two faces
+    of one mesh, not coplanar: ``Visibility.surface_differs`` at the chain's bounces, as
+    at the first hit). Such pairs were no candidates, only the chain's shapes being
+    compared. At k = 8 the weighted sum is measured 0.27 % of the sum of the terms' sizes
+    off, per-pixel relative L2 13 % (before these pairs, and the horizon's g along the
+    chain: 14.3 % and 66 %, growing from k = 4's 6.6 % and 62 %); k = 4 is coarse for a box
+    a few pixels wide (3.9 %, 25 %)."""
+    direction = (-0.1, 0.99, 0.0)
+    reference = finite_difference(mi, GLASS_BOX, "translate2.offset", direction, 0.01)
+    grad = forward(mi, GLASS_BOX, "translate2.offset", direction, 64)
+    w = weights()
+    assert abs(np.sum(w * (grad - reference))) < 0.01 * np.sum(np.abs(w * reference))
+    assert relative_l2(grad, reference) < 0.2
