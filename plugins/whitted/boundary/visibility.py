@@ -121,16 +121,19 @@ class Visibility:
 
     @staticmethod
     def towards_plane(table, ray, d, row, prim, plane):
-        """The inside function of an unbounded plane (``hits.PLANE``) for each ray of unit
-        direction ``d``: the sine of the angle at which it heads towards the plane of its
-        lane's face, from the side of it its origin lies on; 0 at the horizon, where the plane
-        vanishes. (Its faces' edges are edges of rings that crowd towards the horizon, many
-        to a lattice unit; the one a ray hit is not where the plane ends, and moves otherwise:
-        the horizon stays put when the eye, or a chain ray's origin, moves.)"""
+        """The inside function of an unbounded plane (``hits.PLANE``) for each ray (origin o,
+        unit direction ``d``): -(n . (o - p)) (n . d), n the unit normal of its lane's face
+        and p a point of it; > 0 where the ray heads towards the plane from the side its
+        origin lies on. Zero at the horizon (n . d = 0, where the plane vanishes) and where
+        the origin crosses the plane (a surface through the floor, whose part below it sees
+        the floor from under it, along the chain or towards a light): a product of the two,
+        each factor far from zero where the other crosses it. (Its faces' edges are edges
+        of rings that crowd towards the horizon, many to a lattice unit; the one a ray hit
+        is not where the plane ends, and moves otherwise: the horizon stays put when the
+        eye, or a chain ray's origin, moves.)"""
         _, (p0, p1, p2) = table.corners(row, prim, plane)
         n = dr.normalize(dr.cross(p1 - p0, p2 - p0))
-        above = dr.dot(dr.detach(n), dr.detach(ray.o - p0)) >= 0
-        return dr.select(above, -1.0, 1.0) * dr.dot(n, d)
+        return -dr.dot(n, ray.o - p0) * dr.dot(n, d)
 
     @staticmethod
     def sphere_frame(table, row, prim, o, d, sphere):
