@@ -126,6 +126,22 @@ translate 0.1 0.05 0
 SPHERE = FLAT + "sphere\n"
 PIXELS_PER_UNIT = H / (2 * 5 * math.tan(math.radians(20)))  # at depth 5, fov 40
 JUMP = 0.8 - 0.2  # red: the material's ambient color minus the background's
+# a plane under a level camera, lit by ambient light only (the floor one flat colour): the
+# horizon, 0.1 below the eye's level at the look-at point, crosses pixel row 5
+HORIZON = """\
+eye 0 1 5
+lookat 0 0.9 0
+fov 40
+background 0.2 0.3 0.4
+light 1 1 1 ambient
+material 0.8 0.4 0.3 1 0 0 10 0 0 1
+translate 0 -1 0
+plane
+"""
+# d (red) / d (the look-at point's height) in each pixel of the horizon's row (row 5): the
+# horizon moves down by H / (10 tan 20) rows per unit the look-at point rises (the eye
+# rising moves it up as much), turning each pixel from the floor (0.8) to the background
+HORIZON_RATE = -JUMP * H / (10 * math.tan(math.radians(20)))
 # a sphere's shadow on a plane (the shadow edges' and the terms' tests)
 SHADOW = """\
 eye 0 3 6

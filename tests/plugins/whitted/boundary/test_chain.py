@@ -5,13 +5,12 @@ horizon seen in a mirror by its closed form; and chains that reach the last boun
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
-from support_edges import (MIRRORED_SHADOW, H, W, assert_matches_finite_differences,
-                           finite_difference, forward, pairs_of_a_step, relative_l2, weights)
+from support_edges import (HORIZON, HORIZON_RATE, MIRRORED_SHADOW, H, W,
+                           assert_matches_finite_differences, finite_difference, forward,
+                           pairs_of_a_step, relative_l2, weights)
 
 
 @pytest.mark.parametrize("text, key, direction, h", [
@@ -172,17 +171,9 @@ def test_a_moving_glass_boxs_inner_creases_seen_along_the_chain_have_their_terms
 
 
 
-# test_visibility.py's HORIZON, seen in a mirror wall behind the look-at point that fills
-# the view: the floor behind the camera, reflected, runs to the same horizon
-MIRRORED_HORIZON = """\
-eye 0 1 5
-lookat 0 0.9 0
-fov 40
-background 0.2 0.3 0.4
-light 1 1 1 ambient
-material 0.8 0.4 0.3 1 0 0 10 0 0 1
-translate 0 -1 0
-plane
+# support_edges' HORIZON seen in a mirror wall behind the look-at point that fills the
+# view: the floor behind the camera, reflected, runs to the same horizon
+MIRRORED_HORIZON = HORIZON + """\
 reset
 material 0 0 0 0 0 0 1 1 0 1
 triangle -20 -1 -3  20 -1 -3  20 30 -3
@@ -193,11 +184,11 @@ triangle -20 -1 -3  20 30 -3  -20 30 -3
 @pytest.mark.parametrize("spp", [1, 16])
 def test_the_horizon_seen_in_a_mirror_moves_by_its_closed_form(mi, spp):
     """A reflection off the wall (normal along z) keeps a direction's height: the horizon
-    seen in it lies where the camera's own would, and moves at its rate, (0.2 - 0.8) H /
-    (10 tan 20°) per pixel of row 5 per unit the look-at point rises (test_visibility.py).
+    seen in it lies where the camera's own would, and moves at its rate (HORIZON_RATE, per
+    pixel of row 5 per unit the look-at point rises; test_visibility.py).
     Along the chain the floor's g was the edge function of the far ring of its mesh a
     ray met, not its horizon: the term came out of the wrong sign, in row 6 at k = 1."""
     grad = forward(mi, MIRRORED_HORIZON, "camera.lookat", (0, 1, 0), spp)
     expected = np.zeros((H, W))
-    expected[5] = (0.2 - 0.8) * H / (10 * math.tan(math.radians(20)))
+    expected[5] = HORIZON_RATE
     np.testing.assert_allclose(grad[..., 0], expected, rtol=1e-3, atol=1e-4)

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from support_edges import (FLAT, JUMP, PIXELS_PER_UNIT, SPHERE, H, W,
+from support_edges import (FLAT, HORIZON, HORIZON_RATE, JUMP, PIXELS_PER_UNIT, SPHERE, H, W,
                            assert_matches_finite_differences, finite_difference, forward,
                            loaded, relative_l2, weights)
 
@@ -42,20 +42,6 @@ def test_a_slanted_edge_moves_by_its_closed_form(mi):
     assert grad[..., 0].sum() == pytest.approx(expected, rel=0.01)
 
 
-# a plane under a level camera, lit by ambient light only (the floor one flat colour): the
-# horizon, 0.1 below the eye's level at the look-at point, crosses pixel row 5
-HORIZON = """\
-eye 0 1 5
-lookat 0 0.9 0
-fov 40
-background 0.2 0.3 0.4
-light 1 1 1 ambient
-material 0.8 0.4 0.3 1 0 0 10 0 0 1
-translate 0 -1 0
-plane
-"""
-
-
 @pytest.mark.parametrize("spp", [1, 4, 16])
 @pytest.mark.parametrize("key, sign", [("camera.lookat", 1.0), ("camera.eye", -1.0)])
 def test_the_horizon_moves_with_the_camera_by_its_closed_form(mi, key, sign, spp):
@@ -70,7 +56,7 @@ def test_the_horizon_moves_with_the_camera_by_its_closed_form(mi, key, sign, spp
     # with the eye).
     grad = forward(mi, HORIZON, key, (0, 1, 0), spp)
     expected = np.zeros((H, W))
-    expected[5] = sign * (0.2 - 0.8) * H / (10 * math.tan(math.radians(20)))
+    expected[5] = sign * HORIZON_RATE
     np.testing.assert_allclose(grad[..., 0], expected, rtol=1e-3, atol=1e-4)
 
 
