@@ -77,9 +77,9 @@ samples:
 * a visibility edge of the nearer surface N (the other sample's ray misses N's primitive):
   N's inside function -- r - |(c - o) x d| for a sphere, the least of the three normalized
   edge functions for a triangle (signed by the side of its plane a camera ray starts on,
-  or a chain's or shadow ray heads from), for a camera ray the sine of the angle at which
-  it heads towards an unbounded plane (``rayplane``: its outline is the horizon, not the
-  edge of the ring face a ray hit); else the other
+  or a chain's or shadow ray heads from), for an unbounded plane (``rayplane``: its
+  outline is the horizon, not the edge of the ring face a ray hit) -(n . (o - p)) (n . d),
+  zero at the horizon and where the ray's origin crosses the plane; else the other
   surface's; else (both rays meet both primitives: a crease) the difference of the two
   primitives' hit distances;
 * a shadow edge of light j: the blocking primitive's inside function on the two samples'
@@ -89,8 +89,9 @@ samples:
   sign differs between the two samples;
 * a checker line: u / size - m (or v), m the line between the two cells, of the attached
   texture coordinates;
-* the same at bounce d of the specular chain, each sample's chain replayed with
-  derivatives (eta, the geometry, the camera) to that bounce; where total internal
+* the same at bounce d of the specular chain (a visibility edge there: another shape, or
+  two faces of a mesh across a crease, as at the first hit), each sample's chain replayed
+  with derivatives (eta, the geometry, the camera) to that bounce; where total internal
   reflection switches at a surface of the chain, the refraction margin 1 - (eta_i /
   eta_t)^2 (1 - cos^2 theta_i) there.
 

@@ -17,8 +17,7 @@ POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighb
 # The chain's keys of a sample whose chain ended before a bounce (those of the first hit are
 # set for every sample): what a bounce past a chain's end holds
 DEFAULT = {"chain_shape": STOP, "chain_prim": 0, "chain_t": np.inf, "chain_normal": 0.0,
-           "chain_cell": 0,
-           "chain_tir": False, "chain_lit": False, "chain_occluder": NO_HIT}
+           "chain_cell": 0, "chain_tir": False, "chain_lit": False, "chain_occluder": NO_HIT}
 # Two faces of a mesh whose unit normals' dot product is below this (60 degrees apart) lie
 # across a crease: more than the 45 degrees between neighbours of the coarsest tessellation
 # (8 segments), less than a cap's 90 degrees to a cylinder's side
