@@ -36,14 +36,18 @@ def _merge(mask, si, other):
 class Chain:
     """The specular chain of :class:`Boundary` (a mixin of Boundary)."""
 
-    def chain_keys(self, ray, alive, tir):
+    def chain_keys(self, ray, alive, tir, normals=True):
         """The keys of the specular chain (numpy lists, a bounce each: ``chain_shape``, ...,
         ``chain_tir``) from its first rays ``ray``, where ``alive`` (the first hits with a
         next ray), ``tir``: where that ray is a total internal reflection. Each bounce's keys
-        are one evaluation (``chain_normal``: the face's normal, three planes a bounce)."""
+        are one evaluation. ``normals``: with ``chain_normal``, the face's normal, three
+        planes a bounce (the lattice's, for its creases; not for rays whose shapes and
+        lights only are read)."""
         scene, table = self.scene, self.terms.geometry
-        out = {"chain_" + name: [] for name in ("shape", "prim", "t", "normal", "cell", "tir",
-                                                 "lit", "occluder")}
+        out = {"chain_" + name: [] for name in ("shape", "prim", "t", "cell", "tir", "lit",
+                                                 "occluder")}
+        if normals:
+            out["chain_normal"] = []
         for _ in range(CHAIN_DEPTH):
             if not dr.any(alive):  # (the chain's keys past its end: as the lattice starts)
                 break
@@ -55,10 +59,11 @@ class Chain:
             at_tir = alive & tir  # (total internal reflection at the bounce that led here)
             alive = found & keys_k["go"]
             ray, tir = keys_k["next"], keys_k["tir"]
-            dr.eval(keys_k, si_k.n, at_tir, alive)
+            dr.eval(keys_k, si_k.n if normals else [], at_tir, alive)
             for name, value in _host_keys(keys_k).items():  # (lit, occluder: one per light)
                 out["chain_" + name] += value if isinstance(value, list) else [value]
-            out["chain_normal"] += [c.numpy() for c in si_k.n]  # (its x, y, z planes)
+            if normals:
+                out["chain_normal"] += [c.numpy() for c in si_k.n]  # (its x, y, z planes)
             out["chain_tir"].append(at_tir.numpy())
         return out
 

@@ -434,7 +434,7 @@ class Terms:
                     if wanted:
                         needed[keyed[along] + i * count] = True
                 chain = self.chain_keys(first["next"], first["go"] & jit_array(mi.Bool, needed),
-                                        first["tir"])
+                                        first["tir"], normals=False)
         found = None
         if follow:
             found = []
