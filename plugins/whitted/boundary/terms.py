@@ -32,6 +32,11 @@ REFINE, REFINE_MIN = 0.25, 0.005
 # the pairs whose traced sides are checked against L's and R's keys (Terms.jump), and the
 # bisections that find where the renderer's rays switch where they do not match
 KEYED, SWITCH_STEPS = (SHADOW, CHAIN_VISIBILITY, CHAIN_SHADOW), 10
+# The rays one round of those bisections traces at most: a round takes as many steps as
+# fit (2^steps - 1 midpoints a pair) in one trace. A trace costs about 0.8 ms of Python and
+# launches and 0.33 us a ray (benchmarks/edges_bench.py's cost scene, 256 x 192): this many
+# rays cost about as much as the trace itself (its 27 pairs: 10 traces -> 2, 8.5 -> 2.5 ms)
+SWITCH_RAYS = 1 << 11
 
 
 def _groups(kind, light, depth):
@@ -170,6 +175,14 @@ class Path(NamedTuple):
                             for a in (mine, theirs))
             out |= np.any(mine != theirs, axis=tuple(range(1, mine.ndim)))
         return out
+
+
+def bisect_rounds(count, steps, rays=SWITCH_RAYS):
+    """The steps of each round of ``count`` bisections of ``steps`` steps (a list, summing
+    to ``steps``): as many as keep a round's 2^bits - 1 midpoints a bisection within
+    ``rays`` rays (at least one step a round)."""
+    bits = max(1, min(steps, int(np.log2(rays // max(count, 1) + 1))))
+    return [bits] * (steps // bits) + ([steps % bits] if steps % bits else [])
 
 
 class Terms:
@@ -470,14 +483,25 @@ class Terms:
     def switch(self, L, axis, key_l, kind, light, depth, steps=SWITCH_STEPS):
         """Where along the pairs from L (lattice points, ``axis``) the edge's key (see
         :meth:`edge_key`) stops being L's (``key_l``): (lo, hi) offsets from L, 1 / 2^steps
-        lattice units apart, the switch between them (bisection, traced)."""
-        lo, hi = np.zeros(len(axis)), np.ones(len(axis))
-        every = np.arange(len(axis))
-        for _ in range(steps):
-            mid = 0.5 * (lo + hi)
-            point = self.along_axis(L, axis, mid)
-            like_l = self.traced([point], every, kind, light, depth).keys[0] == key_l
-            lo, hi = np.where(like_l, mid, lo), np.where(like_l, hi, mid)
+        lattice units apart, the switch between them: a bisection, whose midpoints are
+        traced several steps at a time (:func:`bisect_rounds`)."""
+        count = len(axis)
+        lo, hi = np.zeros(count), np.ones(count)
+        every = np.arange(count)
+        for bits in bisect_rounds(count, steps):
+            # every midpoint the next ``bits`` steps can visit: lo + j (hi - lo) / 2^bits,
+            # j = 1 .. 2^bits - 1 (dyadic: the very offsets a step at a time would trace)
+            parts = 1 << bits
+            width = (hi - lo) / parts
+            offsets = [lo + j * width for j in range(1, parts)]
+            like_l = self.traced([self.along_axis(L, axis, at) for at in offsets], every, kind,
+                                 light, depth).keys == key_l
+            low, high = np.zeros(count, np.int64), np.full(count, parts)
+            for _ in range(bits):
+                mid = (low + high) // 2
+                here = like_l[mid - 1, every]
+                low, high = np.where(here, mid, low), np.where(here, high, mid)
+            lo, hi = lo + low * width, lo + high * width
         return lo, hi
 
     def spread(self, L, axis, w, slope):
