@@ -177,7 +177,7 @@ class Path(NamedTuple):
         return out
 
 
-def bisect_rounds(count, steps, rays=SWITCH_RAYS):
+def bisect_rounds(count, steps, rays):
     """The steps of each round of ``count`` bisections of ``steps`` steps (a list, summing
     to ``steps``): as many as keep a round's 2^bits - 1 midpoints a bisection within
     ``rays`` rays (at least one step a round)."""
@@ -488,7 +488,7 @@ class Terms:
         count = len(axis)
         lo, hi = np.zeros(count), np.ones(count)
         every = np.arange(count)
-        for bits in bisect_rounds(count, steps):
+        for bits in bisect_rounds(count, steps, SWITCH_RAYS):
             # every midpoint the next ``bits`` steps can visit: lo + j (hi - lo) / 2^bits,
             # j = 1 .. 2^bits - 1 (dyadic: the very offsets a step at a time would trace)
             parts = 1 << bits

@@ -153,3 +153,43 @@ def test_an_edge_squeezed_inside_a_mirror_balls_rim_moves_with_the_rim(mi):
     w = weights(size[1], size[0])
     error = abs(np.sum(w * (grad - reference))) / np.sum(np.abs(w * reference))
     assert error < 0.05, error
+
+
+def test_a_bisections_rounds_fit_the_ray_budget_and_sum_to_its_steps(mi):
+    """Terms.switch traces the midpoints of several bisection steps at once: a round of b
+    steps traces 2^b - 1 midpoints a pair, at most ``rays`` in all (one step a round at
+    least, however many pairs)."""
+    from raymitsuba.plugins.whitted.boundary.terms import bisect_rounds
+
+    for count, rays in ((27, 2048), (1, 2048), (2048, 2048), (5000, 2048), (3, 1 << 15)):
+        rounds = bisect_rounds(count, 10, rays)
+        assert sum(rounds) == 10 and min(rounds) >= 1
+        assert all(count * ((1 << b) - 1) <= rays for b in rounds) or rounds == [1] * 10
+        # no round could take one more step within the budget (the last takes what is left)
+        assert count * ((1 << (rounds[0] + 1)) - 1) > rays or rounds[0] == 10
+    assert bisect_rounds(27, 10, 2048) == [6, 4]
+
+
+def test_the_switch_found_in_rounds_is_the_one_found_a_step_at_a_time(mi, monkeypatch):
+    """A cone's shadow edge, whose pairs' jumps are traced where the renderer's shadow rays
+    switch (test_shadows.py): the bisection's rounds trace exactly the midpoints a
+    step-at-a-time bisection would (dyadic offsets), so the derivative is the same, bit for
+    bit, as with one step a round (SWITCH_RAYS = 1)."""
+    from raymitsuba.plugins.whitted.boundary import terms
+
+    text = SHADOW.replace("scale 0.8 0.8 0.8\nsphere", "scale 0.6 1.2 0.6\ncone") \
+        .replace("point 1.5 4 1", "point 2.5 3 1")
+    switched = []
+    switch = terms.Terms.switch
+
+    def counted(self, L, axis, *args, **kwargs):
+        switched.append(len(axis))
+        return switch(self, L, axis, *args, **kwargs)
+
+    monkeypatch.setattr(terms.Terms, "switch", counted)
+    rounds = forward(mi, text, "light1.position", (0.6, 0.0, -0.8), 16)
+    assert switched and terms.bisect_rounds(switched[0], 10, terms.SWITCH_RAYS)[0] > 1
+    monkeypatch.setattr(terms, "SWITCH_RAYS", 1)
+    steps = forward(mi, text, "light1.position", (0.6, 0.0, -0.8), 16)
+    assert np.abs(rounds).sum() > 0
+    assert np.array_equal(rounds, steps)
