@@ -13,10 +13,16 @@ uses them (its integrator is ``raywhitted``), so the command line asks
 :func:`mitsuba` to skip them (``mitsuba_integrators=False``); the library loads them
 as Mitsuba does unless told otherwise, and :func:`load_mitsuba_integrators` loads
 them later if they were skipped.
+
+The C library's allocator is tuned once, with the variant (:func:`tune_allocator`): a
+gradient step allocates and frees tens of megabytes of numpy arrays (the boundary terms'
+lattice), and glibc's defaults hand them back to the system and fault them in anew, page by
+page, at every step.
 """
 
 from __future__ import annotations
 
+import ctypes
 import importlib
 import importlib.abc
 import importlib.machinery
@@ -28,6 +34,11 @@ from raymitsuba._llvm import LLVMError, configure
 DEFAULT_VARIANT = "llvm_ad_rgb"
 VARIANT_ENV = "RAYMITSUBA_VARIANT"
 AD_INTEGRATORS = "mitsuba.python.ad.integrators"  # the package mi.set_variant (re)loads
+# glibc's mallopt parameters, and what tune_allocator sets them to: blocks up to 64 MiB come
+# from the heap (not a mapping of their own, unmapped when freed), and up to 256 MiB freed at
+# its top stay with the process for the next allocations
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+MMAP_THRESHOLD, TRIM_THRESHOLD = 64 << 20, 256 << 20
 
 
 def variant() -> str:
@@ -44,6 +55,7 @@ def mitsuba(mitsuba_integrators: bool | None = None):
     name = variant()
     if name.startswith("llvm"):
         configure()
+    tune_allocator()
     import drjit as dr
     import mitsuba as mi
 
@@ -63,6 +75,29 @@ def mitsuba(mitsuba_integrators: bool | None = None):
 
     register()
     return mi
+
+
+def tune_allocator() -> bool:
+    """Keep freed memory for reuse (MMAP_THRESHOLD, TRIM_THRESHOLD): with glibc's defaults a
+    block over its (adaptive) threshold is a mapping of its own, and the heap's free top past
+    twice that is handed back, so a gradient step's lattice arrays were faulted in afresh at
+    every step (benchmarks/edges_bench.py's cost scene at 256 x 192: about 5 ms of a 75 ms
+    step). Nothing is done where the process's environment sets a ``MALLOC_`` variable (its
+    owner chose), or the C library has no ``mallopt`` (not glibc). Returns whether it was
+    set. Memory a render frees stays with the process, at most TRIM_THRESHOLD more than it
+    uses; the guards' budgets count what a render holds, which this does not change."""
+    global _allocator_tuned
+    if _allocator_tuned is None:
+        _allocator_tuned = False
+        if not any(name.startswith("MALLOC_") for name in os.environ):
+            mallopt = getattr(ctypes.CDLL(None), "mallopt", None)
+            if mallopt is not None:
+                _allocator_tuned = bool(mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and \
+                    bool(mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD))
+    return _allocator_tuned
+
+
+_allocator_tuned = None  # (tune_allocator's answer, once asked)
 
 
 class _SkipSubmodules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
