@@ -112,8 +112,9 @@ def test_a_second_gradient_step_of_a_geometry_key_compiles_no_kernel(mitsuba):
     first = launched(step)
     set_values(2e-3)
     second = launched(step)
-    assert len(second) == len(first)
-    # Every later step runs the kernels of the one before. (Before arrays.py, 13-28 kernels
+    # Every later step runs the kernels of the one before (how many times each may differ:
+    # the switch's bisection takes its steps in rounds sized by how many pairs it has,
+    # Terms.switch). (Before arrays.py, 13-28 kernels
     # were compiled anew at every step; later, now and then two: the rendered image handed
     # to Mitsuba mapped from numpy, 64-byte aligned or not by chance, and the adjoint of a
     # gather from a stack of pairs' values, which the LLVM backend expanded per thread with
