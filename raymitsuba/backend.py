@@ -81,16 +81,20 @@ def tune_allocator() -> bool:
     """Keep freed memory for reuse (MMAP_THRESHOLD, TRIM_THRESHOLD): with glibc's defaults a
     block over its (adaptive) threshold is a mapping of its own, and the heap's free top past
     twice that is handed back, so a gradient step's lattice arrays were faulted in afresh at
-    every step (benchmarks/edges_bench.py's cost scene at 256 x 192: about 5 ms of a 75 ms
+    every step (benchmarks/edges_bench.py's cost scene at 256 x 192: about 4 ms of a 76 ms
     step). Nothing is done where the process's environment sets a ``MALLOC_`` variable (its
     owner chose), or the C library has no ``mallopt`` (not glibc). Returns whether it was
-    set. Memory a render frees stays with the process, at most TRIM_THRESHOLD more than it
-    uses; the guards' budgets count what a render holds, which this does not change."""
+    set. What a render frees is kept for the process's next allocations (up to
+    TRIM_THRESHOLD of it at the heap's top) instead of going back to the system; the guards'
+    budgets count what a render holds, which this does not change."""
     global _allocator_tuned
     if _allocator_tuned is None:
         _allocator_tuned = False
         if not any(name.startswith("MALLOC_") for name in os.environ):
-            mallopt = getattr(ctypes.CDLL(None), "mallopt", None)
+            try:
+                mallopt = getattr(ctypes.CDLL(None), "mallopt", None)
+            except (OSError, TypeError):  # (no C library to open by the process's name)
+                mallopt = None
             if mallopt is not None:
                 _allocator_tuned = bool(mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and \
                     bool(mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD))

@@ -35,7 +35,7 @@ KEYED, SWITCH_STEPS = (SHADOW, CHAIN_VISIBILITY, CHAIN_SHADOW), 10
 # The rays one round of those bisections traces at most: a round takes as many steps as
 # fit (2^steps - 1 midpoints a pair) in one trace. A trace costs about 0.8 ms of Python and
 # launches and 0.33 us a ray (benchmarks/edges_bench.py's cost scene, 256 x 192): this many
-# rays cost about as much as the trace itself (its 27 pairs: 10 traces -> 2, 8.5 -> 2.5 ms)
+# rays cost about as much as the trace itself (its 27 pairs: 10 traces -> 2, 8.5 -> 2.9 ms)
 SWITCH_RAYS = 1 << 11
 
 
