@@ -15,6 +15,9 @@ from .lattice import NO_HIT, STOP, across_crease, at
 from .terms import at_l_and_r, on_lanes, signs_differ, stacked
 
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
+# how near zero the crease's g must be where, taken as linear, it vanishes between L and R
+# (in multiples of the smaller of its values at L and R), for the crease to be the edge
+CREASE_ZERO = 0.25
 
 
 class Faces:
@@ -58,9 +61,11 @@ class Visibility:
 
     def visibility(self, table, ray, left, right, choices, name):
         """g of a visibility edge between the rays of L and R (of the stacked rays ``ray``),
-        which see (shape, prim, t) ``left`` and ``right`` (per pair): N is the nearer; N's
-        inside function where the other ray's line misses N's primitive, else the other's,
-        else (a crease) the difference of the two primitives' distances. ``choices``: see
+        which see (shape, prim, t) ``left`` and ``right`` (per pair): N is the nearer; the
+        difference of the two primitives' distances where a crease between them comes first
+        (:meth:`crease_first`), else N's inside function where the other ray's line misses
+        N's primitive, else the other's, else (a crease) the difference of the two
+        primitives' distances. ``choices``: see
         g_at (theirs: under ``name``; "first": the camera's rays, whose origin is the eye,
         else rays that start on a surface: see :meth:`edge_functions`)."""
         lanes = dr.width(ray.d)
@@ -69,16 +74,24 @@ class Visibility:
         n_shape, n_prim = (np.where(near_is_l, a, b) for a, b in zip(left[:2], right[:2]))
         f_shape, f_prim = (np.where(near_is_l, b, a) for a, b in zip(left[:2], right[:2]))
         made = choices.get((name, "visibility"))
-        if made is None:  # N's function where its sign differs between L and R, else F's
+        if made is None:  # the crease where it lies on both, else N's function where its
+            # sign differs between L and R, else F's
             near, far = Faces(table, n_shape, n_prim), Faces(table, f_shape, f_prim)
             n_edge = self.crossed_edge(table, ray, near, from_eye)
             f_edge = self.crossed_edge(table, ray, far, from_eye)
+            two = jit_array(mi.Bool, f_shape < STOP)  # (F a surface, not a miss)
+            # (two shapes, both flat: faces of one mesh meet at their edges, which are the
+            # crease; a sphere's distance off its outline is not its own, see crease_first)
+            flat = jit_array(mi.Bool, (f_shape < STOP) & (n_shape != f_shape)) & \
+                ~self.curved(near) & ~self.curved(far)
             with dr.suspend_grad():
+                ends = at_l_and_r(ray, len(f_shape))
                 g_l, g_r = ([self.inside(table, rays, faces, edge, from_eye)
                              for faces, edge in ((near, n_edge), (far, f_edge))]
-                            for rays in at_l_and_r(ray, len(f_shape)))
-            use_n = signs_differ(g_l[0], g_r[0])
-            use_f = ~use_n & jit_array(mi.Bool, f_shape < STOP) & signs_differ(g_l[1], g_r[1])
+                            for rays in ends)
+                use_crease = flat & self.crease_first(table, ends, near, far, from_eye)
+            use_n = ~use_crease & signs_differ(g_l[0], g_r[0])
+            use_f = ~use_crease & ~use_n & two & signs_differ(g_l[1], g_r[1])
             choices[(name, "visibility")] = (n_edge, f_edge, use_n, use_f)
         else:
             n_edge, f_edge, use_n, use_f = made
@@ -86,9 +99,44 @@ class Visibility:
                      for shape, prim in ((n_shape, n_prim), (f_shape, f_prim)))
         gn = self.inside(table, ray, near, on_lanes(n_edge, lanes), from_eye)
         gf = self.inside(table, ray, far, on_lanes(f_edge, lanes), from_eye)
-        crease = self.depth(table, ray, near) - self.depth(table, ray, far)
         return dr.select(on_lanes(use_n, lanes), gn,
-                         dr.select(on_lanes(use_f, lanes), gf, crease))
+                         dr.select(on_lanes(use_f, lanes), gf,
+                                   self.crease(table, ray, near, far)))
+
+    def crease_first(self, table, ends, near, far, from_eye):
+        """Whether the pairs' edge is the crease where the flat faces N and F (``near``,
+        ``far``: :class:`Faces`) meet, by the rays of L and R (``ends``): the crease's g
+        (the difference of their distances) changes sign between L and R, and on the ray
+        between them where it is zero (taken as linear) both faces are there (their inside
+        functions positive) and it is zero indeed (within CREASE_ZERO of the smaller of its
+        values at L and R: a plane seen nearly edge-on, whose distance is far from linear,
+        finds no crease). A surface through another (a cone through the floor, one of whose
+        thin faces L sees while R's line misses that face beyond the floor) then has the
+        crease's g, whose normal and rate are the crease's, not those of the face's own
+        edge that the line crosses past where it dips under the floor. (Not a sphere: its
+        distance is its own only where a ray meets it, and the crease's g is read at L's
+        and R's neighbours too, for the edge's normal, where one may miss it: a sphere
+        through a cylinder keeps the outline's g, as before.)"""
+        c_l, c_r = (self.crease(table, rays, near, far) for rays in ends)
+        w = c_l / (c_l - c_r)  # where the crease's g is zero, from L to R
+        ray_l, ray_r = ends
+        between = mi.Ray3f(dr.lerp(ray_l.o, ray_r.o, w), dr.lerp(ray_l.d, ray_r.d, w))
+        zero = dr.abs(self.crease(table, between, near, far)) < \
+            CREASE_ZERO * dr.minimum(dr.abs(c_l), dr.abs(c_r))
+        return signs_differ(c_l, c_r) & zero \
+            & (self.inside(table, between, near, None, from_eye) > 0) \
+            & (self.inside(table, between, far, None, from_eye) > 0)
+
+    def crease(self, table, ray, near, far):
+        """A crease's g: the difference of each ray's distances to its primitives ``near``
+        and ``far`` (:class:`Faces`)."""
+        return self.depth(table, ray, near) - self.depth(table, ray, far)
+
+    @staticmethod
+    def curved(faces):
+        """Whether each of ``faces``' primitives (:class:`Faces`) is a sphere (or an
+        ellipsoid of the sphere set)."""
+        return faces.valid & ((faces.kind & SPHERE) != 0)
 
     def inside(self, table, ray, faces, edge=None, from_eye=False):
         """The inside function of each ray's primitive (``faces``: :class:`Faces`): > 0 where
