@@ -81,10 +81,10 @@ samples:
   outline is the horizon, not the edge of the ring face a ray hit) -(n . (o - p)) (n . d),
   zero at the horizon and where the ray's origin crosses the plane; else the other
   surface's; else (both rays meet both primitives: a crease) the difference of the two
-  primitives' hit distances -- which also wins where its sign changes between L and R at a
-  point that lies on both primitives (a cone through the floor, whose thin side faces go on
-  under it: the face's own edge, which R's line crosses beyond the crease, is not where
-  the surface ends; ``Visibility.crease_first``);
+  primitives' hit distances -- which also comes first, for two flat faces of two shapes,
+  where its sign changes between L and R at a point that lies on both faces (a cone through
+  the floor, whose thin side faces go on under it: the face's own edge, which R's line
+  crosses beyond the crease, is not where the surface ends; ``Visibility.crease_first``);
 * a shadow edge of light j: the blocking primitive's inside function on the two samples'
   shadow rays (from the attached hit point toward the attached light); where the unlit
   sample has no blocker, it faces away from the light or lies outside a spot's cone: N.L

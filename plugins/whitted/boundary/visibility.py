@@ -82,8 +82,8 @@ class Visibility:
             two = jit_array(mi.Bool, f_shape < STOP)  # (F a surface, not a miss)
             # (two shapes, both flat: faces of one mesh meet at their edges, which are the
             # crease; a sphere's distance off its outline is not its own, see crease_first)
-            flat = jit_array(mi.Bool, (f_shape < STOP) & (n_shape != f_shape)) & \
-                ~self.curved(near) & ~self.curved(far)
+            flat = two & jit_array(mi.Bool, n_shape != f_shape) & ~self.curved(near) & \
+                ~self.curved(far)
             with dr.suspend_grad():
                 ends = at_l_and_r(ray, len(f_shape))
                 g_l, g_r = ([self.inside(table, rays, faces, edge, from_eye)
