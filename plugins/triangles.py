@@ -16,7 +16,11 @@ Parameters:
 * ``faces`` (mi.UInt32, optional): three vertex indices per triangle; default: the
   vertices taken three by three (0 1 2, 3 4 5, ...);
 * ``normals`` (mi.Float, optional): x y z unit vertex normals; given, the mesh is
-  smooth-shaded; absent, its faces are flat.
+  smooth-shaded; absent, its faces are flat;
+* ``neighbours`` (mi.UInt32, optional): per face, the face across each of its edges
+  (``raymitsuba/geometry/topology.py``; 0xFFFFFFFF: none), where the positions alone do
+  not tell (a tessellation's faces, grown apart); kept as ``self.neighbours`` (None:
+  not given) for the integrator (``whitted/protocol.py``'s MeshTopology).
 """
 
 import drjit as dr
@@ -29,6 +33,7 @@ class Triangles(mi.Mesh):
         vertex_count = dr.width(positions) // 3
         faces = props.get("faces") if "faces" in props else dr.arange(mi.UInt32, vertex_count)
         smooth = "normals" in props
+        self.neighbours = props.get("neighbours") if "neighbours" in props else None
         mi.Mesh.__init__(self, "triangles", vertex_count, dr.width(faces) // 3, props,
                          has_vertex_normals=smooth, has_vertex_texcoords=True)
         params = mi.traverse(self)

@@ -72,7 +72,7 @@ MIN_SEGMENTS, MAX_SEGMENTS = 48, 768
 TESSELLATION_BUDGET = 250_000  # triangles of all tessellated objects together (soft)
 BUDGET_MIN_SEGMENTS = 8  # the budget never takes an object below this many segments around
 TESSELLATION_LIMIT = 8_000_000  # triangles past which a scene is refused (hard)
-BYTES_PER_TRIANGLE = 160  # merged mesh arrays (~108: 3 unshared vertices) and Embree's BVH
+BYTES_PER_TRIANGLE = 160  # merged mesh arrays (~120: 3 unshared vertices, the faces' neighbours) and Embree's BVH
 PLANE_REACH = 1e6  # the plane mesh reaches this many camera heights away
 NEAR_CLIP, FAR_CLIP = 1e-4, 1e12
 
@@ -595,7 +595,8 @@ def world_mesh(mesh, mi) -> dict:
     """A ``raytriangles`` dict of a world-space float32 tessellation (smooth: with vertex normals)."""
     return {"type": "raytriangles", "positions": mi.Float(mesh.positions.ravel()),
             "normals": mi.Float(mesh.normals.ravel()), "texcoords": mi.Float(mesh.texcoords.ravel()),
-            "faces": mi.UInt32(mesh.faces.ravel())}
+            "faces": mi.UInt32(mesh.faces.ravel()),
+            "neighbours": mi.UInt32(mesh.neighbours.ravel().astype(np.uint32))}
 
 
 def uv_to_image(mi):

@@ -37,14 +37,15 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from raymitsuba.geometry import sphere_set
+from raymitsuba.geometry import sphere_set, topology
 
 from .arrays import jit_array
-from .protocol import SurfaceSet, UnboundedPlane
+from .protocol import MeshTopology, SurfaceSet, UnboundedPlane
 
 # bits of a shape's kind (0: not in the table); PLANE: a flat mesh that stands for an unbounded
 # plane (protocol.UnboundedPlane)
 MESH, SMOOTH, TEXCOORDS, SPHERE, PLANE = 1, 2, 4, 8, 16
+NO_NEIGHBOUR = 0xFFFFFFFF  # (HitTable.neighbours: no face across an edge; topology.NONE as uint32)
 
 
 # Shape ids read by shape_ids, by the Dr.Jit index of the scene's array of shapes (which
@@ -228,6 +229,9 @@ class HitTable:
         # neither uv nor ellipsoids)
         self.has_ellipsoids = False  # whether some row is an ellipsoid (of a sphere set)
         self.ellipsoid = None  # Bool by row, if has_ellipsoids: its hits solved in object space
+        # The meshes' (first face, faces, first vertex, vertices, declared neighbours or
+        # None), and their faces' neighbours (see neighbours: made when first read)
+        self.mesh_ranges, self.adjacency = [], None
 
     # -- the table ---------------------------------------------------------------------------
     def update(self, scene, uv=True, ids=None):
@@ -270,6 +274,7 @@ class HitTable:
         kind = np.zeros(size, np.uint32)
         first = np.zeros(size, np.uint32)  # first face (meshes) or row (spheres)
         faces, positions, normals, texcoords = [], [], [], []
+        self.mesh_ranges, self.adjacency = [], None
         spheres = SphereRows(self.uv)
         face_count = vertex_count = 0
         self.rows_by_name = {}
@@ -302,6 +307,9 @@ class HitTable:
                            else np.zeros(3 * count, np.float32))
             texcoords.append(texcoord_buf.numpy() if texcoord_buf is not None
                              else np.zeros(2 * count, np.float32))
+            self.mesh_ranges.append((face_count, len(mesh_faces) // 3, vertex_count, count,
+                                     shape.neighbours if isinstance(shape, MeshTopology)
+                                     else None))
             face_count += len(mesh_faces) // 3
             vertex_count += count
         self.kind, self.first = jit_array(mi.UInt32, kind), jit_array(mi.UInt32, first)
@@ -431,6 +439,28 @@ class HitTable:
             derivatives.append(dr.select(mesh, mi.Vector2f(uv - si.uv) * (1.0 + k), 0.0))
             distortion.append(dr.select(mesh, k, 0.0))
         return derivatives[0], derivatives[1], tuple(distortion)
+
+    def neighbours(self):
+        """A UInt32 of three entries per face (of the concatenated faces): the face of the
+        same mesh across each of its edges (edge i: from corner i to corner i + 1 mod 3), as
+        that mesh's primitive index; NO_NEIGHBOUR where none (the mesh's border, or more than
+        one face). A mesh's own (``protocol.MeshTopology``: a tessellation's faces are grown
+        apart), else found where the faces' corners' positions are equal
+        (``raymitsuba.geometry.topology``). The topology only: made when first read, and
+        kept by the table's copies that carry derivatives."""
+        if self.adjacency is None:
+            faces = self.faces.numpy().reshape(-1, 3).astype(np.int64)
+            positions = self.positions.numpy().reshape(-1, 3)
+            out = np.full((len(faces), 3), NO_NEIGHBOUR, np.uint32)
+            for face0, count, vertex0, vertices, declared in self.mesh_ranges:
+                if declared is not None:
+                    out[face0:face0 + count] = declared.numpy().reshape(-1, 3)
+                    continue
+                found = topology.face_neighbours(faces[face0:face0 + count] - vertex0,
+                                                 positions[vertex0:vertex0 + vertices])
+                out[face0:face0 + count] = found.astype(np.uint32)  # (NONE: NO_NEIGHBOUR)
+            self.adjacency = jit_array(mi.UInt32, out.ravel())
+        return self.adjacency
 
     def corners(self, row, prim_index, mesh):
         """(face vertex indices, positions) of each lane's hit face."""

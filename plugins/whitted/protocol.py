@@ -10,7 +10,8 @@ provide its part; the names they check are the classes' own (:func:`members`).
   with its :class:`SurfaceMaterial`, or a :class:`SurfaceSet` of them, one per primitive;
 * :class:`Light` (``raylight``) and :class:`Background` (``raybackground``): every emitter
   of the scene is one or the other;
-* :class:`UnboundedPlane`: a mesh that stands for an unbounded plane (``rayplane``).
+* :class:`UnboundedPlane`: a mesh that stands for an unbounded plane (``rayplane``);
+* :class:`MeshTopology`: a mesh that declares its faces' neighbours (``raytriangles``).
 """
 
 from __future__ import annotations
@@ -93,6 +94,17 @@ class UnboundedPlane(Protocol):
     there (``boundary/visibility.py``)."""
 
     unbounded_plane: bool  # True
+
+
+@runtime_checkable
+class MeshTopology(Protocol):
+    """A mesh that declares which of its faces meet along an edge, where its positions do
+    not tell (a tessellation, whose faces are grown apart: ``raymitsuba/geometry``). The
+    edge derivatives follow a segment across a mesh's faces to its outline by them
+    (``boundary/visibility.py``); a mesh without them has them found from its positions
+    (``hits.HitTable.neighbours``)."""
+
+    neighbours: object  # mi.UInt32, 3 per face (hits.NO_NEIGHBOUR: none), or None: not declared
 
 
 @functools.cache  # (read once per protocol: a scene checks thousands of surfaces)

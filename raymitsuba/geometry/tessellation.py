@@ -53,6 +53,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from . import topology
+
 OVERLAP = 1e-4  # relative growth of each face about its centroid (see "No cracks")
 RING_RATIO = 0.8  # the cone's ring radii 1, 0.8, 0.64, ...
 
@@ -62,6 +64,9 @@ class Tessellation(NamedTuple):
     normals: np.ndarray  # (V, 3) float64, unit
     texcoords: np.ndarray  # (V, 2) float64
     faces: np.ndarray  # (F, 3) int64 indices into the vertices
+    # (F, 3) int: the face across each edge (topology.face_neighbours, topology.NONE: none),
+    # of a template and what is made of it; None: not known (a template's pieces)
+    neighbours: object = None
 
 
 # -- pieces of the templates ---------------------------------------------------------------------
@@ -200,7 +205,7 @@ def overlapping(mesh: Tessellation, grow=OVERLAP) -> Tessellation:
 
     flat = np.arange(3 * len(mesh.faces)).reshape(-1, 3)
     return Tessellation(grown(mesh.positions), mesh.normals[mesh.faces].reshape(-1, 3),
-                        grown(mesh.texcoords), flat)
+                        grown(mesh.texcoords), flat, mesh.neighbours)
 
 
 @functools.lru_cache(maxsize=None)
@@ -208,7 +213,11 @@ def template(kind: str, segments: int) -> Tessellation:
     """The object-space tessellation of a primitive with ``segments`` around its axis:
     outward, overlapping, three vertices per face (read-only arrays, shared)."""
     mesh = PRIMITIVES[kind](segments)
-    mesh = overlapping(mesh._replace(faces=orient_outward(mesh.positions, mesh.normals, mesh.faces)))
+    faces = orient_outward(mesh.positions, mesh.normals, mesh.faces)
+    # (neighbours where the faces meet before they grow apart; the seam's and the rim's
+    # vertices, computed twice in double precision, equal to 9 decimals)
+    mesh = overlapping(mesh._replace(faces=faces, neighbours=topology.face_neighbours(
+        faces, mesh.positions, decimals=9)))
     for a in mesh:
         a.setflags(write=False)
     return mesh
@@ -228,8 +237,16 @@ def placed(mesh: Tessellation, to_world: np.ndarray) -> Tessellation:
     faces = (first[None, :, None] + corner_order[:, None, :]
              + (count * np.arange(len(to_world)))[:, None, None])
     texcoords = np.broadcast_to(mesh.texcoords, (len(to_world),) + mesh.texcoords.shape)
+    neighbours = None
+    if mesh.neighbours is not None:  # each copy's, its faces offset; a mirrored copy's edges
+        # run the other way round (corners 0 2 1: its edges 0, 1, 2 are the template's 2, 1, 0)
+        edge_order = np.where(np.linalg.det(linear)[:, None] < 0, [2, 1, 0], [0, 1, 2])
+        across = mesh.neighbours[:, edge_order].transpose(1, 0, 2)  # (k, F, 3)
+        neighbours = np.where(across == topology.NONE, topology.NONE,
+                              across + (len(mesh.faces) * np.arange(len(to_world)))[:, None, None])
+        neighbours = neighbours.reshape(-1, 3)
     return Tessellation(positions.reshape(-1, 3), normals.reshape(-1, 3),
-                        texcoords.reshape(-1, 2), faces.reshape(-1, 3))
+                        texcoords.reshape(-1, 2), faces.reshape(-1, 3), neighbours)
 
 
 def merged(batches, chunk_vertices=1 << 20) -> Tessellation:
@@ -239,7 +256,8 @@ def merged(batches, chunk_vertices=1 << 20) -> Tessellation:
     vertices = sum(len(t.positions) * len(m) for t, m in batches)
     faces = sum(len(t.faces) * len(m) for t, m in batches)
     out = Tessellation(np.empty((vertices, 3), np.float32), np.empty((vertices, 3), np.float32),
-                       np.empty((vertices, 2), np.float32), np.empty((faces, 3), np.uint32))
+                       np.empty((vertices, 2), np.float32), np.empty((faces, 3), np.uint32),
+                       np.empty((faces, 3), np.int32))
     v0 = f0 = 0
     for mesh, to_world in batches:
         step = max(chunk_vertices // len(mesh.positions), 1)
@@ -248,5 +266,7 @@ def merged(batches, chunk_vertices=1 << 20) -> Tessellation:
             v1, f1 = v0 + len(part.positions), f0 + len(part.faces)
             out.positions[v0:v1], out.normals[v0:v1] = part.positions, part.normals
             out.texcoords[v0:v1], out.faces[f0:f1] = part.texcoords, part.faces + v0
+            out.neighbours[f0:f1] = np.where(part.neighbours == topology.NONE, topology.NONE,
+                                             part.neighbours + f0)
             v0, f0 = v1, f1
     return out

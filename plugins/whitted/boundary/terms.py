@@ -227,7 +227,8 @@ class Terms:
         across = slope_across(w, (gla - glb) / span(points["LA"], points["LB"]),
                               (gra - grb) / span(points["RA"], points["RB"]))
         normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
-        df = self.jump(ends, axis, w, kind, light, pairs["depth"][sl])
+        df = self.jump(ends, axis, w, kind, light, pairs["depth"][sl],
+                       self.followed(ends, kind, crossing[5]))
         # (a pair whose g beside the crossing is undefined, a ray there seeing nothing its
         # function reads, adds no term: selected out, as a product with 0 would carry NaN in
         # forward mode)
@@ -303,7 +304,7 @@ class Terms:
                                            choices, "first")
         return choice
 
-    def jump(self, ends, axis, w, kind, light, depth):
+    def jump(self, ends, axis, w, kind, light, depth, followed=None):
         """f_L - f_R across each pair's crossing: the colors of two rays traced just either
         side of it (LIMIT lattice units, RIM_LIMIT for a visibility edge of the surface seen;
         within the pair; both sides stacked, one trace), where they see what L and R see
@@ -328,7 +329,13 @@ class Terms:
         an edge squeezed between the outline and the sample (a mirror ball's rim holds what
         lies just outside it, unfolded, in a band thinner than the lattice at any k) moves
         with the outline (docs/gradients.md, 'Edges on random scenes': seed 17's ball radius
-        at 128 x 96, k = 8, 40.5 % -> 5.7 % of the weighted sum). Not where only the lights
+        at 128 x 96, k = 8, 40.5 % -> 5.7 % of the weighted sum). So too where the pair's
+        segment was followed past the sample's face to the mesh's outline (``followed``,
+        per pair: :meth:`Visibility.outline`): the faces between them, foreshortened near a
+        smooth mesh's silhouette, squeeze its shading into a band that moves with the
+        outline (a tessellated cone seen by a moving camera's fov, k = 16: the weighted
+        sum 7.7 % of the sum of sizes off with the color at the outline, 0.5 % with the
+        sample's). Not where only the lights
         of the surface itself differ: a shadow edge or the terminator on it is foreshortened
         near the outline, not squeezed into it, and is resolved as k grows (taking the
         sample's color there cost the random scenes' diffuse balls, seeds 11 and 25,
@@ -353,7 +360,8 @@ class Terms:
         # crossing and the sample, is no pair's, and moves with the outline
         if len(visible):
             for s, (point, flat_point) in enumerate(((ends.L, ends.l), (ends.R, ends.r))):
-                off = near[s][sides.paths[s].differs(self.path_at(flat_point[near[s]]))]
+                off = near[s][sides.paths[s].differs(self.path_at(flat_point[near[s]]))
+                              | (followed is not None and followed[near[s]])]
                 if len(off):
                     colors[s, off] = self.colors_at(tuple(p[off] for p in point))
         if len(keyed):

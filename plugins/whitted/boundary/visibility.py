@@ -10,14 +10,17 @@ import mitsuba as mi
 import numpy as np
 
 from ..arrays import jit_array
-from ..hits import MESH, PLANE, SMOOTH, SPHERE
-from .lattice import NO_HIT, STOP, across_crease, at
+from ..hits import MESH, NO_NEIGHBOUR, PLANE, SMOOTH, SPHERE
+from .lattice import CREASE, NO_HIT, STOP, VISIBILITY, across_crease, at
 from .terms import at_l_and_r, on_lanes, signs_differ, stacked
 
 COPLANAR = 1e-5  # faces whose unit normals differ by less than this are one surface
 # how near zero the crease's g must be where, taken as linear, it vanishes between L and R
 # (in multiples of the smaller of its values at L and R), for the crease to be the edge
 CREASE_ZERO = 0.25
+# the most faces of a mesh past its own that a pair's segment is followed across, to the
+# mesh's outline (Visibility.outline)
+WALK = 8
 
 
 class Faces:
@@ -30,6 +33,12 @@ class Faces:
         ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
         self.valid, self.kind, self.row = table.entries(ids, jit_array(mi.Bool, shape != NO_HIT))
         self.prim = jit_array(mi.UInt32, prim.astype(np.uint32))
+
+    def with_prim(self, prim):
+        """The same shapes' primitives ``prim`` (a UInt32 per lane, on the device)."""
+        out = object.__new__(Faces)
+        out.valid, out.kind, out.row, out.prim = self.valid, self.kind, self.row, prim
+        return out
 
 
 class Visibility:
@@ -77,31 +86,48 @@ class Visibility:
         if made is None:  # the crease where it lies on both, else N's function where its
             # sign differs between L and R, else F's
             near, far = Faces(table, n_shape, n_prim), Faces(table, f_shape, f_prim)
-            n_edge = self.crossed_edge(table, ray, near, from_eye)
             f_edge = self.crossed_edge(table, ray, far, from_eye)
             two = jit_array(mi.Bool, f_shape < STOP)  # (F a surface, not a miss)
             # (two shapes, both flat: faces of one mesh meet at their edges, which are the
             # crease; a sphere's distance off its outline is not its own, see crease_first)
             flat = two & jit_array(mi.Bool, n_shape != f_shape) & ~self.curved(near) & \
                 ~self.curved(far)
+            # N's face and edge where the segment leaves N's mesh, or dips behind F's
+            # surface (the crease), not merely where it leaves N's own face
+            near, n_edge = self.outline(table, ray, near, self.crossed_edge(table, ray, near,
+                                                                            from_eye),
+                                        from_eye, far, flat)
             with dr.suspend_grad():
                 ends = at_l_and_r(ray, len(f_shape))
+                use_crease = flat & self.crease_first(table, ends, near, far, from_eye)
                 g_l, g_r = ([self.inside(table, rays, faces, edge, from_eye)
                              for faces, edge in ((near, n_edge), (far, f_edge))]
                             for rays in ends)
-                use_crease = flat & self.crease_first(table, ends, near, far, from_eye)
             use_n = ~use_crease & signs_differ(g_l[0], g_r[0])
             use_f = ~use_crease & ~use_n & two & signs_differ(g_l[1], g_r[1])
-            choices[(name, "visibility")] = (n_edge, f_edge, use_n, use_f)
+            choices[(name, "visibility")] = (near.prim, n_edge, f_edge, use_n, use_f)
         else:
-            n_edge, f_edge, use_n, use_f = made
+            _, n_edge, f_edge, use_n, use_f = made
+        n_walked = choices[(name, "visibility")][0]
         near, far = (Faces(table, stacked(shape, lanes), stacked(prim, lanes))
                      for shape, prim in ((n_shape, n_prim), (f_shape, f_prim)))
+        near = near.with_prim(on_lanes(n_walked, lanes))
         gn = self.inside(table, ray, near, on_lanes(n_edge, lanes), from_eye)
         gf = self.inside(table, ray, far, on_lanes(f_edge, lanes), from_eye)
         return dr.select(on_lanes(use_n, lanes), gn,
                          dr.select(on_lanes(use_f, lanes), gf,
                                    self.crease(table, ray, near, far)))
+
+    @staticmethod
+    def followed(ends, kind, choices):
+        """Per pair (numpy bool): whether it is a visibility pair of the surface seen whose
+        segment g_at followed past its near sample's face (:meth:`outline`; ``choices``: g_at's,
+        made; ``ends``: the pairs' :class:`Ends`)."""
+        made = choices.get(("first", "visibility"))
+        if made is None:
+            return np.zeros(len(kind), bool)
+        near_prim = np.where(ends.t[0] <= ends.t[1], *ends.prim)
+        return (kind == VISIBILITY) & (made[0].numpy() != near_prim.astype(np.uint32))
 
     def crease_first(self, table, ends, near, far, from_eye):
         """Whether the pairs' edge is the crease where the flat faces N and F (``near``,
@@ -224,25 +250,125 @@ class Visibility:
             return dr.full(mi.Int32, -1, count)
         with dr.suspend_grad():
             mesh = faces.valid & ((faces.kind & MESH) != 0)
-            sides = []
-            for rays in at_l_and_r(ray, count):  # (L's, then R's)
-                d = dr.normalize(dr.detach(rays.d))
-                rays = mi.Ray3f(dr.detach(rays.o), d)
-                sides.append(self.edge_functions(table, rays, d, faces.row, faces.prim, mesh,
-                                                 from_eye))
+            sides = self.edges_at_ends(table, ray, faces, mesh, from_eye)
             # the end inside the face: where the least of the three functions is the larger
             l_inside = dr.minimum(dr.minimum(sides[0][0], sides[0][1]), sides[0][2]) >= \
                 dr.minimum(dr.minimum(sides[1][0], sides[1][1]), sides[1][2])
-            edge, nearest = mi.Int32(-1), mi.Float(dr.inf)
-            for i in (0, 1, 2):
-                a, b = sides[0][i], sides[1][i]
-                flips = signs_differ(a, b)
-                at = a / (a - b)  # where the function is zero, from L (0) to R (1)
-                from_inside = dr.select(l_inside, at, 1.0 - at)
-                better = flips & (from_inside < nearest)
-                edge = dr.select(better, i, edge)
-                nearest = dr.select(better, from_inside, nearest)
-            return dr.select(mesh, edge, -1)
+            return dr.select(mesh, self.leaving(sides, l_inside)[0], -1)
+
+    def edges_at_ends(self, table, ray, faces, mesh, from_eye):
+        """The three edge functions (:meth:`edge_functions`) of each pair's face (``faces``,
+        where ``mesh``) at L's and at R's rays (of the stacked rays ``ray``), detached: [L's
+        three, R's three]."""
+        sides = []
+        for rays in at_l_and_r(ray, dr.width(faces.prim)):  # (L's, then R's)
+            d = dr.normalize(dr.detach(rays.d))
+            rays = mi.Ray3f(dr.detach(rays.o), d)
+            sides.append(self.edge_functions(table, rays, d, faces.row, faces.prim, mesh,
+                                             from_eye))
+        return sides
+
+    @staticmethod
+    def leaving(sides, l_inside, entered=False):
+        """(edge, at): the edge (Int32: 0, 1, 2; -1: none) through which the segment from
+        the inside end (L where ``l_inside``, else R) leaves the face whose edge functions at
+        the ends are ``sides`` (:meth:`edges_at_ends`), or enters it: of those whose sign
+        differs between the ends, the one whose zero (the functions taken as linear) lies
+        nearest the inside end; and that zero, as a fraction of the way from the inside end.
+        ``entered``: the inside end lies outside the face (a face the segment was followed
+        into, :meth:`outline`), and only an edge whose function is >= 0 there, one the
+        segment leaves by, counts."""
+        edge, nearest = mi.Int32(-1), mi.Float(dr.inf)
+        for i in (0, 1, 2):
+            a, b = sides[0][i], sides[1][i]
+            at = a / (a - b)  # where the function is zero, from L (0) to R (1)
+            from_inside = dr.select(l_inside, at, 1.0 - at)
+            better = signs_differ(a, b) & (from_inside < nearest)
+            if entered:
+                better &= dr.select(l_inside, a, b) >= 0
+            edge = dr.select(better, i, edge)
+            nearest = dr.select(better, from_inside, nearest)
+        return edge, nearest
+
+    def outline(self, table, ray, faces, edge, from_eye=False, far=None, flat=None):
+        """(faces, edge) where each pair's segment leaves its face's mesh (``faces``:
+        :class:`Faces`; ``edge``: the edge through which it leaves that face,
+        :meth:`crossed_edge`). Where that edge is no edge of the surface's -- another face
+        of the mesh shares it (``HitTable.neighbours``), the segment goes on into it, and
+        the look does not jump there (:meth:`goes_on`) -- the segment is followed into that
+        face, to the edge it leaves it by, up to WALK faces; it stops at an outline (the
+        mesh's border, or a fold: a closed mesh's silhouette), at a crease (whose own jump,
+        between L's face and the next, no pair then has: the lattice's error where two
+        edges share a pair, which falls with k), where it would end inside a face, and
+        where the mesh goes behind the other sample's surface (``far``, where ``flat``:
+        the two distances' difference changes sign between the inside end and where the
+        segment leaves the face: the crease between them is the edge, see
+        :meth:`crease_first`). (A tessellated cylinder's cap is a fan of thin triangles: at
+        its rim, a segment from a sample on the cap to one beyond it may leave the sample's
+        face through a spoke, whose line is no edge and moves as the spoke does; the rim is
+        where it leaves the next face.)"""
+        if not table.has_meshes:
+            return faces, edge
+        with dr.suspend_grad():
+            mesh = faces.valid & ((faces.kind & MESH) != 0) & ((faces.kind & PLANE) == 0)
+            sides = self.edges_at_ends(table, ray, faces, mesh, from_eye)
+            l_inside = dr.minimum(dr.minimum(sides[0][0], sides[0][1]), sides[0][2]) >= \
+                dr.minimum(dr.minimum(sides[1][0], sides[1][1]), sides[1][2])
+            _, leaves_at = self.leaving(sides, l_inside)
+            ray_l, ray_r = (mi.Ray3f(dr.detach(r.o), dr.detach(r.d))
+                            for r in at_l_and_r(ray, dr.width(faces.prim)))
+            start = mi.Ray3f(dr.select(l_inside, ray_l.o, ray_r.o),
+                             dr.select(l_inside, ray_l.d, ray_r.d))
+            neighbours = table.neighbours()
+            prim, active = faces.prim, mesh & (edge >= 0)
+            for _ in range(WALK):
+                if far is not None:  # (not past where the mesh dips behind F's surface)
+                    active &= ~(flat & self.dips_behind(table, faces.with_prim(prim), far, start,
+                                                        ray_l, ray_r, l_inside, leaves_at))
+                if not dr.any(active):
+                    break
+                there = dr.gather(mi.UInt32, neighbours,
+                                  (faces.row + prim) * 3 + mi.UInt32(dr.maximum(edge, 0)), active)
+                active &= there != NO_NEIGHBOUR
+                active &= self.goes_on(table, faces, prim, there, edge, start.o, active)
+                sides = self.edges_at_ends(table, ray, faces.with_prim(there), active, from_eye)
+                leaves, at = self.leaving(sides, l_inside, entered=True)
+                active &= leaves >= 0
+                prim = dr.select(active, there, prim)
+                edge = dr.select(active, leaves, edge)
+                leaves_at = dr.select(active, at, leaves_at)
+            return faces.with_prim(prim), edge
+
+    def dips_behind(self, table, near, far, start, ray_l, ray_r, l_inside, leaves_at):
+        """Whether each pair's face ``near`` goes behind ``far``'s surface (:class:`Faces`)
+        between the segment's inside end (the ray ``start``) and where the segment leaves
+        the face (``leaves_at``, a fraction of the way from the inside end; the rays of L
+        and R: ``ray_l``, ``ray_r``): the crease's g changes sign between them."""
+        w = dr.select(l_inside, leaves_at, 1.0 - leaves_at)  # (from L)
+        leaving = mi.Ray3f(dr.lerp(ray_l.o, ray_r.o, w), dr.lerp(ray_l.d, ray_r.d, w))
+        return signs_differ(self.crease(table, start, near, far),
+                            self.crease(table, leaving, near, far))
+
+    @staticmethod
+    def goes_on(table, faces, prim, there, edge, o, active):
+        """Whether a segment that leaves each lane's face ``prim`` of its mesh (``faces``:
+        :class:`Faces`, for the mesh's kind and first face) through its edge ``edge`` goes
+        on, unbroken, into the face ``there`` that shares the edge: the two lie either side
+        of it as seen from ``o`` (their centroids either side of the plane through ``o`` and
+        the edge, whatever their winding: not a fold, where a closed mesh's outline is), and
+        the surface's look does not jump there (a smooth mesh's faces within CREASE of each
+        other, a flat mesh's coplanar: not a crease, whose jump is an edge of its own)."""
+        _, (p0, p1, p2) = table.corners(faces.row, prim, active)
+        _, (q0, q1, q2) = table.corners(faces.row, there, active)
+        a = dr.select(edge == 0, p0, dr.select(edge == 1, p1, p2))
+        b = dr.select(edge == 0, p1, dr.select(edge == 1, p2, p0))
+        m = dr.cross(a - o, b - o)
+        either_side = dr.dot(m, (p0 + p1 + p2) / 3.0 - o) * dr.dot(m, (q0 + q1 + q2) / 3.0 - o) < 0
+        n_here = dr.normalize(dr.cross(p1 - p0, p2 - p0))
+        n_there = dr.normalize(dr.cross(q1 - q0, q2 - q0))
+        unbroken = dr.select((faces.kind & SMOOTH) != 0, dr.dot(n_here, n_there) >= CREASE,
+                             dr.norm(n_here - n_there) <= COPLANAR)
+        return either_side & unbroken
 
     def depth(self, table, ray, faces):
         """The distance along each ray to its primitive's (``faces``: :class:`Faces`) plane
