@@ -77,7 +77,10 @@ samples:
 * a visibility edge of the nearer surface N (the other sample's ray misses N's primitive):
   N's inside function -- r - |(c - o) x d| for a sphere, the least of the three normalized
   edge functions for a triangle (signed by the side of its plane a camera ray starts on,
-  or a chain's or shadow ray heads from), for an unbounded plane (``rayplane``: its
+  or a chain's or shadow ray heads from; of a mesh, the face and edge where the segment
+  between L and R leaves the mesh, followed across its faces by their neighbours where
+  its look does not jump: a tessellated cap's fan of thin faces, a smooth mesh's
+  foreshortened faces at its silhouette; ``Visibility.outline``), for an unbounded plane (``rayplane``: its
   outline is the horizon, not the edge of the ring face a ray hit) -(n . (o - p)) (n . d),
   zero at the horizon and where the ray's origin crosses the plane; else the other
   surface's; else (both rays meet both primitives: a crease) the difference of the two
@@ -86,7 +89,8 @@ samples:
   the floor, whose thin side faces go on under it: the face's own edge, which R's line
   crosses beyond the crease, is not where the surface ends; ``Visibility.crease_first``);
 * a shadow edge of light j: the blocking primitive's inside function on the two samples'
-  shadow rays (from the attached hit point toward the attached light); where the unlit
+  shadow rays (from the attached hit point toward the attached light; a mesh's face
+  followed to its outline, as above); where the unlit
   sample has no blocker, it faces away from the light or lies outside a spot's cone: N.L
   at the attached hit (the shading normal facing the ray), or the spot's cos a where its
   sign differs between the two samples;

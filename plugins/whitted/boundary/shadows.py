@@ -48,12 +48,17 @@ class Shadows:
             facing = dr.dot(self.tracer.facing_normal(si, ray), wi)
             made = choices.get((name, "shadow", j))
             facing, crosses = cone_crossing(source, wi, facing, made, len(which), lanes)
-            edge = made[1] if made is not None else \
-                self.crossed_edge(table, shadow, Faces(table, blocker[:, 0], blocker[:, 1]))
-            choices[(name, "shadow", j)] = (crosses, edge)
+            if made is None:  # (the blocker's face and edge where the pair's segment of
+                # shadow rays leaves the blocking mesh: Visibility.outline)
+                faces = Faces(table, blocker[:, 0], blocker[:, 1])
+                faces, edge = self.outline(table, shadow, faces,
+                                           self.crossed_edge(table, shadow, faces))
+                made = (crosses, edge, faces.prim)
+            choices[(name, "shadow", j)] = (crosses,) + made[1:]
+            _, edge, prim = made
             gs = self.inside(table, shadow, Faces(table, stacked(blocker[:, 0], lanes),
-                                                  stacked(blocker[:, 1], lanes)),
-                             on_lanes(edge, lanes))
+                                                  stacked(blocker[:, 1], lanes))
+                             .with_prim(on_lanes(prim, lanes)), on_lanes(edge, lanes))
             g = dr.select(jit_array(mi.Bool, stacked(mask, lanes)),
                           dr.select(unblocked, facing, gs), g)
         return g

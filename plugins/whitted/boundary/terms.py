@@ -318,8 +318,9 @@ class Terms:
         the mesh's thin faces lie between L's and R's shadow rays, the edge of that face
         that flips is an inner one, not the silhouette; both sides were traced in the
         shadow, and the term was lost (a cone's shadow, k = 16: 3.9 % of the sum of sizes
-        off, per-pixel 48 %; now 0.4 % and 9 %; the crossing's place and rate stay that
-        inner edge's, the rest of that error). So too an edge seen in a mirror ball near
+        off, per-pixel 48 %; then 0.4 % and 9 %, the crossing's place and rate that inner
+        edge's; with the segment followed to the silhouette, Visibility.outline, 0.3 % and
+        3.1 %). So too an edge seen in a mirror ball near
         its rim, where g along the chain is far from linear (a ball's radius, k = 8: 19 %
         -> 8.3 %).
 

@@ -351,3 +351,25 @@ def test_a_flat_meshs_coplanar_faces_are_one_surface_and_a_smooth_meshs_are_not(
     assert len(set(prim[on_plane])) > 2 and len(set(key[on_plane])) == 1
     on_cylinder = np.isin(shape, cylinder) & np.array(si.is_valid())
     assert on_cylinder.sum() > 20 and (key[on_cylinder] == prim[on_cylinder]).all()
+
+
+def test_a_mesh_without_declared_neighbours_has_them_from_its_positions(mitsuba):
+    """The geometry table's neighbours: a tessellated cylinder's are the ones its template
+    declares (``raytriangles``' ``neighbours``); two ``triangle`` lines that share an edge
+    (one mesh of unshared vertices, no declaration) meet by their corners' positions."""
+    from raymitsuba.plugins.whitted.hits import NO_NEIGHBOUR, HitTable
+
+    text = ("eye 0 0 5\nlookat 0 0 0\nlight 1 1 1 point 0 0 5\n"
+            "material 0.5 0.5 0.5 0.2 0.7 0 1 0 0 1\n"
+            "triangle 0 0 0  1 0 0  1 1 0\ntriangle 0 0 0  1 1 0  0 1 0\n"
+            "translate 3 0 0\ncylinder\n")
+    scene = load_ray(text, 8, 6).scene
+    table = HitTable().update(scene)
+    across = table.neighbours().numpy().reshape(-1, 3)
+    for face0, count, _, _, declared in table.mesh_ranges:
+        mine = across[face0:face0 + count]
+        if declared is None:  # the two triangles
+            assert mine.tolist() == [[NO_NEIGHBOUR, NO_NEIGHBOUR, 1], [0, NO_NEIGHBOUR, NO_NEIGHBOUR]]
+        else:
+            assert (mine != NO_NEIGHBOUR).all() and (mine < count).all()
+    assert sum(declared is not None for *_, declared in table.mesh_ranges) == 1

@@ -89,8 +89,12 @@ def test_a_tessellated_cones_shadow_edge_keeps_its_jump_as_k_grows(mi):
     that face that flips is an inner one, not the silhouette; the colors traced either side
     of its crossing were both in the shadow, and the term was lost at every k (k = 16: 3.9 %
     of the sum of sizes, per-pixel 48 %). Such a pair's jump is traced where the renderer's
-    shadow rays switch, found by bisection (``Terms.jump``); measured 0.4 % and 9 % at
-    k = 16 (the crossing's place and rate are still the inner edge's)."""
+    shadow rays switch, found by bisection (``Terms.jump``): 0.4 % and 9 % at k = 16, the
+    crossing's place and rate still the inner edge's. Now the pair's segment of shadow
+    rays is followed across the cone's faces to its silhouette (Visibility.outline),
+    whose edge function g then is: measured 0.3 % and 3.1 % (k = 4: 0.9 % and 7.7 %, from
+    0.1 % and 30 %). The reference's own spread (h against h / 2, a 4 x 4 finer lattice):
+    0.2 % and 2.4 %; the bounds, 1 % and 6 %, lie above both."""
     text = SHADOW.replace("scale 0.8 0.8 0.8\nsphere", "scale 0.6 1.2 0.6\ncone") \
         .replace("point 1.5 4 1", "point 2.5 3 1")
     direction = (0.6, 0.0, -0.8)
@@ -98,4 +102,4 @@ def test_a_tessellated_cones_shadow_edge_keeps_its_jump_as_k_grows(mi):
     grad = forward(mi, text, "light1.position", direction, 16 * 16)
     w = weights()
     assert abs(np.sum(w * (grad - reference))) < 0.01 * np.sum(np.abs(w * reference))
-    assert relative_l2(grad, reference) < 0.15
+    assert relative_l2(grad, reference) < 0.06
