@@ -73,8 +73,9 @@ class Visibility:
         which see (shape, prim, t) ``left`` and ``right`` (per pair): N is the nearer; the
         difference of the two primitives' distances where a crease between them comes first
         (:meth:`crease_first`), else N's inside function where the other ray's line misses
-        N's primitive, else the other's, else (a crease) the difference of the two
-        primitives' distances. ``choices``: see
+        N's primitive (of a mesh, the face and edge where the segment between L and R leaves
+        the mesh: :meth:`outline`), else the other's, else (a crease) the difference of the
+        two primitives' distances. ``choices``: see
         g_at (theirs: under ``name``; "first": the camera's rays, whose origin is the eye,
         else rays that start on a surface: see :meth:`edge_functions`)."""
         lanes = dr.width(ray.d)
@@ -93,10 +94,14 @@ class Visibility:
             flat = two & jit_array(mi.Bool, n_shape != f_shape) & ~self.curved(near) & \
                 ~self.curved(far)
             # N's face and edge where the segment leaves N's mesh, or dips behind F's
-            # surface (the crease), not merely where it leaves N's own face
-            near, n_edge = self.outline(table, ray, near, self.crossed_edge(table, ray, near,
-                                                                            from_eye),
-                                        from_eye, far, flat)
+            # surface (the crease), not merely where it leaves N's own face: of the
+            # camera's rays only (along the chain an outline so found has its color traced
+            # at the outline, whose squeezed band Terms.jump does not replace by the
+            # sample's there: a glass cone's and a cone in a mirror floor's camera keys,
+            # seeds 22 and 28 of benchmarks/random_edges.py, lost 1-5 points with it)
+            n_edge = self.crossed_edge(table, ray, near, from_eye)
+            if from_eye:
+                near, n_edge = self.outline(table, ray, near, n_edge, from_eye, far, flat)
             with dr.suspend_grad():
                 ends = at_l_and_r(ray, len(f_shape))
                 use_crease = flat & self.crease_first(table, ends, near, far, from_eye)
@@ -251,10 +256,15 @@ class Visibility:
         with dr.suspend_grad():
             mesh = faces.valid & ((faces.kind & MESH) != 0)
             sides = self.edges_at_ends(table, ray, faces, mesh, from_eye)
-            # the end inside the face: where the least of the three functions is the larger
-            l_inside = dr.minimum(dr.minimum(sides[0][0], sides[0][1]), sides[0][2]) >= \
-                dr.minimum(dr.minimum(sides[1][0], sides[1][1]), sides[1][2])
-            return dr.select(mesh, self.leaving(sides, l_inside)[0], -1)
+            return dr.select(mesh, self.leaving(sides, self.l_inside(sides))[0], -1)
+
+    @staticmethod
+    def l_inside(sides):
+        """Whether L is the end of each pair inside its face (``sides``: the edge functions
+        at L and R, :meth:`edges_at_ends`): the end where the least of the three is the
+        larger."""
+        return dr.minimum(dr.minimum(sides[0][0], sides[0][1]), sides[0][2]) >= \
+            dr.minimum(dr.minimum(sides[1][0], sides[1][1]), sides[1][2])
 
     def edges_at_ends(self, table, ray, faces, mesh, from_eye):
         """The three edge functions (:meth:`edge_functions`) of each pair's face (``faces``,
@@ -312,8 +322,7 @@ class Visibility:
         with dr.suspend_grad():
             mesh = faces.valid & ((faces.kind & MESH) != 0) & ((faces.kind & PLANE) == 0)
             sides = self.edges_at_ends(table, ray, faces, mesh, from_eye)
-            l_inside = dr.minimum(dr.minimum(sides[0][0], sides[0][1]), sides[0][2]) >= \
-                dr.minimum(dr.minimum(sides[1][0], sides[1][1]), sides[1][2])
+            l_inside = self.l_inside(sides)
             _, leaves_at = self.leaving(sides, l_inside)
             ray_l, ray_r = (mi.Ray3f(dr.detach(r.o), dr.detach(r.d))
                             for r in at_l_and_r(ray, dr.width(faces.prim)))
