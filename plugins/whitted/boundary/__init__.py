@@ -77,10 +77,11 @@ samples:
 * a visibility edge of the nearer surface N (the other sample's ray misses N's primitive):
   N's inside function -- r - |(c - o) x d| for a sphere, the least of the three normalized
   edge functions for a triangle (signed by the side of its plane a camera ray starts on,
-  or a chain's or shadow ray heads from; of a mesh, the face and edge where the segment
-  between L and R leaves the mesh, followed across its faces by their neighbours where
-  its look does not jump: a tessellated cap's fan of thin faces, a smooth mesh's
-  foreshortened faces at its silhouette; ``Visibility.outline``), for an unbounded plane (``rayplane``: its
+  or a chain's or shadow ray heads from; of a mesh seen by the camera, the face and edge
+  where the segment between L and R leaves the mesh, followed across its faces by their
+  neighbours where its look does not jump: a tessellated cap's fan of thin faces, a
+  smooth mesh's foreshortened faces at its silhouette; ``Visibility.outline``), for an
+  unbounded plane (``rayplane``: its
   outline is the horizon, not the edge of the ring face a ray hit) -(n . (o - p)) (n . d),
   zero at the horizon and where the ray's origin crosses the plane; else the other
   surface's; else (both rays meet both primitives: a crease) the difference of the two
