@@ -114,7 +114,8 @@ def test_the_rooms_allowed_make_the_pipeline_order():
 
 
 # The shared geometry conventions of the translator and the plugins: arrays, so numpy.
-NUMPY_CONVENTIONS = ("raymitsuba.geometry.tessellation", "raymitsuba.geometry.sphere_set")
+NUMPY_CONVENTIONS = ("raymitsuba.geometry.tessellation", "raymitsuba.geometry.sphere_set",
+                     "raymitsuba.geometry.topology")
 
 
 # What the front end may import beyond the standard library: fastnumbers, a number reader in C
