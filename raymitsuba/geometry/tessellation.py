@@ -28,7 +28,10 @@ Conventions, decided here once for every tessellated shape:
   coordinates extrapolated alike: neighbours overlap by a sliver far wider than
   the edge test's rounding error and far narrower than anything visible. (An
   affine map keeps centroids and ratios, so growing in object space is growing
-  in the world.)
+  in the world.) Which faces meet is then no longer told by equal positions: a
+  template's faces' neighbours (``Tessellation.neighbours``, ``topology.py``) are
+  matched before they grow, and carried with the faces into the world's meshes (the
+  edge derivatives follow a mesh's outline by them).
 
 The primitives' object spaces and texture coordinates:
 
