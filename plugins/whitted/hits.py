@@ -449,9 +449,10 @@ class HitTable:
         (``raymitsuba.geometry.topology``). The topology only: made when first read, and
         kept by the table's copies that carry derivatives."""
         if self.adjacency is None:
-            faces = self.faces.numpy().reshape(-1, 3).astype(np.int64)
-            positions = self.positions.numpy().reshape(-1, 3)
-            out = np.full((len(faces), 3), NO_NEIGHBOUR, np.uint32)
+            out = np.full((dr.width(self.faces) // 3, 3), NO_NEIGHBOUR, np.uint32)
+            if any(declared is None for *_, declared in self.mesh_ranges):
+                faces = self.faces.numpy().reshape(-1, 3).astype(np.int64)
+                positions = self.positions.numpy().reshape(-1, 3)
             for face0, count, vertex0, vertices, declared in self.mesh_ranges:
                 if declared is not None:
                     out[face0:face0 + count] = declared.numpy().reshape(-1, 3)

@@ -51,8 +51,7 @@ class Shadows:
             if made is None:  # (the blocker's face and edge where the pair's segment of
                 # shadow rays leaves the blocking mesh: Visibility.outline)
                 faces = Faces(table, blocker[:, 0], blocker[:, 1])
-                faces, edge = self.outline(table, shadow, faces,
-                                           self.crossed_edge(table, shadow, faces))
+                faces, edge = self.outline(table, shadow, faces)
                 made = (crosses, edge, faces.prim)
             choices[(name, "shadow", j)] = (crosses,) + made[1:]
             _, edge, prim = made

@@ -99,9 +99,10 @@ class Visibility:
             # at the outline, whose squeezed band Terms.jump does not replace by the
             # sample's there: a glass cone's and a cone in a mirror floor's camera keys,
             # seeds 22 and 28 of benchmarks/random_edges.py, lost 1-5 points with it)
-            n_edge = self.crossed_edge(table, ray, near, from_eye)
             if from_eye:
-                near, n_edge = self.outline(table, ray, near, n_edge, from_eye, far, flat)
+                near, n_edge = self.outline(table, ray, near, from_eye, far, flat)
+            else:
+                n_edge = self.crossed_edge(table, ray, near, from_eye)
             with dr.suspend_grad():
                 ends = at_l_and_r(ray, len(f_shape))
                 use_crease = flat & self.crease_first(table, ends, near, far, from_eye)
@@ -110,10 +111,10 @@ class Visibility:
                             for rays in ends)
             use_n = ~use_crease & signs_differ(g_l[0], g_r[0])
             use_f = ~use_crease & ~use_n & two & signs_differ(g_l[1], g_r[1])
-            choices[(name, "visibility")] = (near.prim, n_edge, f_edge, use_n, use_f)
+            n_walked = near.prim
+            choices[(name, "visibility")] = (n_walked, n_edge, f_edge, use_n, use_f)
         else:
-            _, n_edge, f_edge, use_n, use_f = made
-        n_walked = choices[(name, "visibility")][0]
+            n_walked, n_edge, f_edge, use_n, use_f = made
         near, far = (Faces(table, stacked(shape, lanes), stacked(prim, lanes))
                      for shape, prim in ((n_shape, n_prim), (f_shape, f_prim)))
         near = near.with_prim(on_lanes(n_walked, lanes))
@@ -300,13 +301,14 @@ class Visibility:
             nearest = dr.select(better, from_inside, nearest)
         return edge, nearest
 
-    def outline(self, table, ray, faces, edge, from_eye=False, far=None, flat=None):
+    def outline(self, table, ray, faces, from_eye=False, far=None, flat=None):
         """(faces, edge) where each pair's segment leaves its face's mesh (``faces``:
-        :class:`Faces`; ``edge``: the edge through which it leaves that face,
-        :meth:`crossed_edge`). Where that edge is no edge of the surface's -- another face
-        of the mesh shares it (``HitTable.neighbours``), the segment goes on into it, and
-        the look does not jump there (:meth:`goes_on`) -- the segment is followed into that
-        face, to the edge it leaves it by, up to WALK faces; it stops at an outline (the
+        :class:`Faces`), starting from the edge through which it leaves that face
+        (:meth:`crossed_edge`'s, found here with where along the segment it lies). Where
+        that edge is no edge of the surface's -- another face of the mesh shares it
+        (``HitTable.neighbours``), the segment goes on into it, and the look does not jump
+        there (:meth:`goes_on`) -- the segment is followed into that face, to the edge it
+        leaves it by, up to WALK faces; it stops at an outline (the
         mesh's border, or a fold: a closed mesh's silhouette), at a crease (whose own jump,
         between L's face and the next, no pair then has: the lattice's error where two
         edges share a pair, which falls with k), where it would end inside a face, and
@@ -318,12 +320,14 @@ class Visibility:
         face through a spoke, whose line is no edge and moves as the spoke does; the rim is
         where it leaves the next face.)"""
         if not table.has_meshes:
-            return faces, edge
+            return faces, dr.full(mi.Int32, -1, dr.width(faces.prim))
         with dr.suspend_grad():
-            mesh = faces.valid & ((faces.kind & MESH) != 0) & ((faces.kind & PLANE) == 0)
+            mesh = faces.valid & ((faces.kind & MESH) != 0)
             sides = self.edges_at_ends(table, ray, faces, mesh, from_eye)
             l_inside = self.l_inside(sides)
-            _, leaves_at = self.leaving(sides, l_inside)
+            edge, leaves_at = self.leaving(sides, l_inside)
+            edge = dr.select(mesh, edge, -1)  # (crossed_edge's)
+            mesh &= (faces.kind & PLANE) == 0  # (an unbounded plane's outline: its horizon)
             ray_l, ray_r = (mi.Ray3f(dr.detach(r.o), dr.detach(r.d))
                             for r in at_l_and_r(ray, dr.width(faces.prim)))
             start = mi.Ray3f(dr.select(l_inside, ray_l.o, ray_r.o),
