@@ -52,12 +52,13 @@ class Shadows:
                 # shadow rays leaves the blocking mesh: Visibility.outline)
                 faces = Faces(table, blocker[:, 0], blocker[:, 1])
                 faces, edge = self.outline(table, shadow, faces)
-                made = (crosses, edge, faces.prim)
+                made = (crosses, edge, faces.prim if faces.walked else None)
             choices[(name, "shadow", j)] = (crosses,) + made[1:]
             _, edge, prim = made
-            gs = self.inside(table, shadow, Faces(table, stacked(blocker[:, 0], lanes),
-                                                  stacked(blocker[:, 1], lanes))
-                             .with_prim(on_lanes(prim, lanes)), on_lanes(edge, lanes))
+            blocking = Faces(table, stacked(blocker[:, 0], lanes), stacked(blocker[:, 1], lanes))
+            if prim is not None:  # (followed to the mesh's outline)
+                blocking = blocking.with_prim(on_lanes(prim, lanes))
+            gs = self.inside(table, shadow, blocking, on_lanes(edge, lanes))
             g = dr.select(jit_array(mi.Bool, stacked(mask, lanes)),
                           dr.select(unblocked, facing, gs), g)
         return g

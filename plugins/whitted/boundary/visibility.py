@@ -33,11 +33,13 @@ class Faces:
         ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
         self.valid, self.kind, self.row = table.entries(ids, jit_array(mi.Bool, shape != NO_HIT))
         self.prim = jit_array(mi.UInt32, prim.astype(np.uint32))
+        self.walked = False  # (whether Visibility.outline may have moved some lane's prim)
 
-    def with_prim(self, prim):
+    def with_prim(self, prim, walked=False):
         """The same shapes' primitives ``prim`` (a UInt32 per lane, on the device)."""
         out = object.__new__(Faces)
         out.valid, out.kind, out.row, out.prim = self.valid, self.kind, self.row, prim
+        out.walked = walked
         return out
 
 
@@ -101,8 +103,9 @@ class Visibility:
             # seeds 22 and 28 of benchmarks/random_edges.py, lost 1-5 points with it)
             if from_eye:
                 near, n_edge = self.outline(table, ray, near, from_eye, far, flat)
+                n_walked = near.prim if near.walked else None
             else:
-                n_edge = self.crossed_edge(table, ray, near, from_eye)
+                n_edge, n_walked = self.crossed_edge(table, ray, near, from_eye), None
             with dr.suspend_grad():
                 ends = at_l_and_r(ray, len(f_shape))
                 use_crease = flat & self.crease_first(table, ends, near, far, from_eye)
@@ -111,13 +114,13 @@ class Visibility:
                             for rays in ends)
             use_n = ~use_crease & signs_differ(g_l[0], g_r[0])
             use_f = ~use_crease & ~use_n & two & signs_differ(g_l[1], g_r[1])
-            n_walked = near.prim
             choices[(name, "visibility")] = (n_walked, n_edge, f_edge, use_n, use_f)
         else:
             n_walked, n_edge, f_edge, use_n, use_f = made
         near, far = (Faces(table, stacked(shape, lanes), stacked(prim, lanes))
                      for shape, prim in ((n_shape, n_prim), (f_shape, f_prim)))
-        near = near.with_prim(on_lanes(n_walked, lanes))
+        if n_walked is not None:  # (N's faces followed to the mesh's outline: outline)
+            near = near.with_prim(on_lanes(n_walked, lanes))
         gn = self.inside(table, ray, near, on_lanes(n_edge, lanes), from_eye)
         gf = self.inside(table, ray, far, on_lanes(f_edge, lanes), from_eye)
         return dr.select(on_lanes(use_n, lanes), gn,
@@ -130,7 +133,7 @@ class Visibility:
         segment g_at followed past its near sample's face (:meth:`outline`; ``choices``: g_at's,
         made; ``ends``: the pairs' :class:`Ends`)."""
         made = choices.get(("first", "visibility"))
-        if made is None:
+        if made is None or made[0] is None:  # (none followed)
             return np.zeros(len(kind), bool)
         near_prim = np.where(ends.t[0] <= ends.t[1], *ends.prim)
         return (kind == VISIBILITY) & (made[0].numpy() != near_prim.astype(np.uint32))
@@ -332,15 +335,15 @@ class Visibility:
                             for r in at_l_and_r(ray, dr.width(faces.prim)))
             start = mi.Ray3f(dr.select(l_inside, ray_l.o, ray_r.o),
                              dr.select(l_inside, ray_l.d, ray_r.d))
-            neighbours = table.neighbours()
-            prim, active = faces.prim, mesh & (edge >= 0)
+            prim, active, walked = faces.prim, mesh & (edge >= 0), False
             for _ in range(WALK):
+                if not dr.any(active):
+                    break
+                walked = True
                 if far is not None:  # (not past where the mesh dips behind F's surface)
                     active &= ~(flat & self.dips_behind(table, faces.with_prim(prim), far, start,
                                                         ray_l, ray_r, l_inside, leaves_at))
-                if not dr.any(active):
-                    break
-                there = dr.gather(mi.UInt32, neighbours,
+                there = dr.gather(mi.UInt32, table.neighbours(),
                                   (faces.row + prim) * 3 + mi.UInt32(dr.maximum(edge, 0)), active)
                 active &= there != NO_NEIGHBOUR
                 active &= self.goes_on(table, faces, prim, there, edge, start.o, active)
@@ -350,7 +353,7 @@ class Visibility:
                 prim = dr.select(active, there, prim)
                 edge = dr.select(active, leaves, edge)
                 leaves_at = dr.select(active, at, leaves_at)
-            return faces.with_prim(prim), edge
+            return (faces.with_prim(prim, walked=True) if walked else faces), edge
 
     def dips_behind(self, table, near, far, start, ray_l, ray_r, l_inside, leaves_at):
         """Whether each pair's face ``near`` goes behind ``far``'s surface (:class:`Faces`)
