@@ -40,7 +40,7 @@ CASES = [
     ("sphere.radius", 33, 4),  # 0.4 %
     ("v.position", 27, 8),  # 12 % at k = 4, 1.4 % at k = 8
     ("light.position", 1, 4),  # 0.55 %
-    ("light.direction", 2, 4),  # 1.7 % (1.5 % before the shadow pairs followed a mesh)
+    ("light.direction", 2, 4),  # 1.7 % (1.5 % at the previous stop)
 ]
 
 
