@@ -293,17 +293,17 @@ def fine_detail_scene(width=512, height=384, spokes=48, wires=12):
     return "\n".join(lines) + "\n"
 
 
-def references(work, path, width, height):
-    """{spp: image} of the scene at ``path``: its 256-spp render (a 16 x 16 grid a pixel,
-    issue 31's reference) and its 1024-spp one (32 x 32). The finer one is the truth the
-    shares are read against: towards a checkerboard's horizon a regular grid aliases, and
+def references(work, path, width, height, counts=(256, 1024)):
+    """{spp: image} of the scene at ``path`` for each spp of ``counts``: its 256-spp render
+    (a 16 x 16 grid a pixel, issue 31's reference), its 1024-spp one (32 x 32). The finer
+    one is the truth the shares are read against: towards a checkerboard's horizon a regular grid aliases, and
     on the benchmark's reflective scene the 256-spp render is itself within 2/255 of the
     1024-spp one on only 98.5 % of the pixels (and the 1024-spp of a 4096-spp one on
     99.5 %), while the filtered board of ``--aa`` converges to the pixel's average."""
     import numpy as np
 
     out = {}
-    for spp in (256, 1024):
+    for spp in counts:
         ref = os.path.join(work, f"ref{spp}.npy")
         process(render_cmd(path, ref, "--width", width, "--height", height, "--spp", spp,
                            "--time-limit", 0))
@@ -402,7 +402,7 @@ def aa_gallery_section(work, repeats, width=512, height=384, names=AA_GALLERY):
           f"{repeats} rounds' ratios --aa / 1 spp; within 2/255 and 8/255 of a 1024-spp render):")
     for name in names:
         path = scene_path(name)
-        truth = references(work, path, width, height)[1024]
+        truth = references(work, path, width, height, (1024,))[1024]
         out = os.path.join(work, "gallery.npy")
         cmds = [render_cmd(path, out, "--width", width, "--height", height, *args)
                 for args in (("--spp", 1), ("--aa",))]
