@@ -296,10 +296,11 @@ def fine_detail_scene(width=512, height=384, spokes=48, wires=12):
 def references(work, path, width, height, counts=(256, 1024)):
     """{spp: image} of the scene at ``path`` for each spp of ``counts``: its 256-spp render
     (a 16 x 16 grid a pixel, issue 31's reference), its 1024-spp one (32 x 32). The finer
-    one is the truth the shares are read against: towards a checkerboard's horizon a regular grid aliases, and
-    on the benchmark's reflective scene the 256-spp render is itself within 2/255 of the
-    1024-spp one on only 98.5 % of the pixels (and the 1024-spp of a 4096-spp one on
-    99.5 %), while the filtered board of ``--aa`` converges to the pixel's average."""
+    one is the truth the shares are read against. Towards a checkerboard's horizon a
+    regular grid aliases, while the filtered board of ``--aa`` converges to the pixel's
+    average: on the benchmark's reflective scene the 256-spp render is itself within 2/255
+    of the 1024-spp one on only 98.5 % of the pixels (and the 1024-spp of a 4096-spp one
+    on 99.5 %)."""
     import numpy as np
 
     out = {}
