@@ -72,7 +72,8 @@ MIN_SEGMENTS, MAX_SEGMENTS = 48, 768
 TESSELLATION_BUDGET = 250_000  # triangles of all tessellated objects together (soft)
 BUDGET_MIN_SEGMENTS = 8  # the budget never takes an object below this many segments around
 TESSELLATION_LIMIT = 8_000_000  # triangles past which a scene is refused (hard)
-BYTES_PER_TRIANGLE = 160  # merged mesh arrays (~120: 3 unshared vertices, the faces' neighbours) and Embree's BVH
+# merged mesh arrays (~120: 3 unshared vertices, the faces' neighbours) and Embree's BVH
+BYTES_PER_TRIANGLE = 160
 PLANE_REACH = 1e6  # the plane mesh reaches this many camera heights away
 NEAR_CLIP, FAR_CLIP = 1e-4, 1e12
 

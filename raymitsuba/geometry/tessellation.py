@@ -245,9 +245,8 @@ def placed(mesh: Tessellation, to_world: np.ndarray) -> Tessellation:
         # run the other way round (corners 0 2 1: its edges 0, 1, 2 are the template's 2, 1, 0)
         edge_order = np.where(np.linalg.det(linear)[:, None] < 0, [2, 1, 0], [0, 1, 2])
         across = mesh.neighbours[:, edge_order].transpose(1, 0, 2)  # (k, F, 3)
-        neighbours = np.where(across == topology.NONE, topology.NONE,
-                              across + (len(mesh.faces) * np.arange(len(to_world)))[:, None, None])
-        neighbours = neighbours.reshape(-1, 3)
+        neighbours = topology.shifted(
+            across, (len(mesh.faces) * np.arange(len(to_world)))[:, None, None]).reshape(-1, 3)
     return Tessellation(positions.reshape(-1, 3), normals.reshape(-1, 3),
                         texcoords.reshape(-1, 2), faces.reshape(-1, 3), neighbours)
 
@@ -269,7 +268,6 @@ def merged(batches, chunk_vertices=1 << 20) -> Tessellation:
             v1, f1 = v0 + len(part.positions), f0 + len(part.faces)
             out.positions[v0:v1], out.normals[v0:v1] = part.positions, part.normals
             out.texcoords[v0:v1], out.faces[f0:f1] = part.texcoords, part.faces + v0
-            out.neighbours[f0:f1] = np.where(part.neighbours == topology.NONE, topology.NONE,
-                                             part.neighbours + f0)
+            out.neighbours[f0:f1] = topology.shifted(part.neighbours, f0)
             v0, f0 = v1, f1
     return out

@@ -43,3 +43,9 @@ def face_neighbours(faces: np.ndarray, positions: np.ndarray, decimals=None) -> 
     flat = out.ravel()
     flat[first], flat[second] = second // 3, first // 3
     return out
+
+
+def shifted(neighbours: np.ndarray, faces: int) -> np.ndarray:
+    """``neighbours`` (face indices, NONE where none) of a mesh whose faces come ``faces``
+    later in a larger one: the indices moved by ``faces``, NONE kept."""
+    return np.where(neighbours == NONE, NONE, neighbours + faces)

@@ -200,8 +200,9 @@ class Terms:
         kind, light, axis = pairs["kind"][sl], pairs["light"][sl], pairs["axis"][sl]
         # what picks g (see g_at); its choices made from L's and R's values, kept for the
         # second pass
+        choices = {}
         crossing = (ends, kind, light, pairs["depth"][sl],
-                    (pairs["coord"][sl], pairs["line"][sl]), {})
+                    (pairs["coord"][sl], pairs["line"][sl]), choices)
         # g at the lattice points (detached): the crossing where it changes sign, linear
         # between L and R
         with dr.suspend_grad():
@@ -228,7 +229,7 @@ class Terms:
                               (gra - grb) / span(points["RA"], points["RB"]))
         normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
         df = self.jump(ends, axis, w, kind, light, pairs["depth"][sl],
-                       self.followed(ends, kind, crossing[5]))
+                       self.followed(ends, kind, choices))
         # (a pair whose g beside the crossing is undefined, a ray there seeing nothing its
         # function reads, adds no term: selected out, as a product with 0 would carry NaN in
         # forward mode)
