@@ -274,3 +274,52 @@ def test_bands_and_chunks_of_a_scene_of_mirrors_glass_and_a_board_are_the_whole_
     assert np.array_equal(np.concatenate(bands), whole)
     integrator.chunk_pixels = 37
     assert np.array_equal(integrator.render_array(loaded.scene), whole)
+
+
+@pytest.mark.parametrize("scene", ["scenes/mirror_hall.ray", "scenes/aa_showcase.ray"])
+def test_a_grid_jobs_pixels_have_the_values_their_own_grids_jobs_give(mi, scene):
+    """The refinement traces its grids in one job (GridJob): each pixel's value, and its
+    samples' spread and path signatures, are those its grid's own Job gives, bit for bit,
+    whole or in chunks of 7 pixels (which cut the groups, and one holds coherent pixels, n^2 a
+    multiple of 16: packets, and others: rays alone). mirror_hall.ray's coincident faces tie
+    (a tie may resolve by a ray's packet mates); the showcase's board is filtered over each
+    sample's footprint."""
+    import drjit as dr
+
+    import raymitsuba
+    from raymitsuba.plugins.whitted import antialias
+    from raymitsuba.plugins.whitted.camera import pixel_means
+    from raymitsuba.plugins.whitted.chunks import Chunker, Job
+
+    width, height = 64, 48
+    loaded = raymitsuba.load(scene, width=width, height=height, aa=0.02)
+    integrator, scene = loaded.integrator, loaded.scene
+    sensor = scene.sensors()[0]
+    estimate = integrator._estimate(scene, sensor, width, height, 1,
+                                    integrator.tracer.scene_terms(scene))
+    pixels = np.random.default_rng(5).permutation(width * height).astype(np.uint32)
+    sides = (2, 3, 4, 6, 8, 12)
+    groups = [(pixels[k * 40:(k + 1) * 40], n) for k, n in enumerate(sides)]
+    for chunk in (None, 7):
+        def chunker():
+            return Chunker(integrator.tracer, scene, sensor, integrator.memory_budget,
+                           max_pixels=chunk)
+
+        job = antialias.GridJob(width, height, groups)
+        assert job.coherence(0, job.count) is not True and job.count == 240  # (both kinds)
+        traced = antialias.trace_grids(chunker(), estimate, job, signed=0.02, spreads=True)
+        for (own_pixels, n), (means, spread, paths) in zip(groups, traced):
+            want = np.empty_like(means)
+            samples = np.empty((len(own_pixels), n * n, 3), np.float32)
+            signatures = np.empty((len(own_pixels), n * n), np.uint32)
+
+            def visit(start, count, color, path):
+                want[start:start + count] = \
+                    dr.ravel(pixel_means(color, count, n * n)).numpy().reshape(-1, 3)
+                samples[start:start + count] = dr.ravel(color).numpy().reshape(count, n * n, 3)
+                signatures[start:start + count] = path.numpy().reshape(count, n * n)
+
+            chunker().run(Job(width, height, n * n, pixels=own_pixels), visit, signed=0.02)
+            assert np.array_equal(means, want), (chunk, n)
+            assert np.array_equal(spread, (samples.max(axis=1) - samples.min(axis=1)).max(-1))
+            assert np.array_equal(paths, signatures), (chunk, n)
