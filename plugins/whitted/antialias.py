@@ -209,17 +209,11 @@ class GridJob:
         self.group_start = np.cumsum([0] + [len(pixels) for pixels, _ in self.groups])
         # the pixels of the coherent groups: the job's first ones
         self.packets = sum(len(pixels) for pixels, n in self.groups if whole_packets(n * n))
-        # A chunk's camera rays, at most: the largest group's. The small groups share a chunk
-        # (one launch of each kernel for them all) while the largest ray tree, and so the
-        # render's peak memory, is the one its own Job would trace.
-        self.chunk_lanes = max((len(pixels) * n * n for pixels, n in self.groups), default=1)
 
-    # -- a job's interface (see chunks.Job) ------------------------------------------------
     def samples(self, start, count):
         return int(self.first_lane[start + count] - self.first_lane[start])
 
     def fitting(self, start, lanes):
-        lanes = min(lanes, self.chunk_lanes)
         last = np.searchsorted(self.first_lane, self.first_lane[start] + lanes, "right") - 1
         return max(int(last) - start, 1)
 
@@ -406,8 +400,8 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
                lambda agree, flat, own: own | (agree & ~flat), False))
     groups = [((np.flatnonzero(mask) + first).astype(np.uint32), side)
               for mask, side, _, _ in probes]
-    # (the path signatures: only for the pixels between two refined ones, the first probe's)
-    signed = least_weight(threshold) if by_path is not None and len(groups[0][0]) else None
+    signed = least_weight(threshold) if any(len(pixels) and paths for (pixels, _), (*_, paths)
+                                            in zip(groups, probes)) else None
     traced = trace_grids(chunker, estimate, GridJob(width, height, groups), signed, True)
     for (pixels, side), (_, _, settles, paths), (means, spread, path) in \
             zip(groups, probes, traced):
@@ -435,7 +429,7 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
 
 def trace_grids(chunker, estimate, job, signed=None, spreads=False):
     """Trace ``job``'s (a :class:`GridJob`'s) pixels through ``chunker``, each group first
-    admitted by the guards' ``estimate``. For each of its groups, in the order given: (means,
+    admitted by the guards' ``estimate``. For each of its ``groups``, in their order: (means,
     spread, paths), (count, 3) float32 each pixel's box-filtered value; with ``spreads``,
     (count,) float32 the largest difference in one channel between two of its samples,
     else None; with ``signed`` (``Tracer.trace``'s), (count, n^2) uint32 its samples' path
