@@ -70,10 +70,6 @@
    grey rather than noise no affordable grid resolves, and the edges of larger squares
    need no refinement at all (step 0).
 
-After the first pass the refinement traces three jobs (``chunks.Chunker``): the corners,
-the probes of both kinds, and every grid of step 3 together (:class:`GridJob`: a job's
-fixed cost paid once, its wavefronts wider).
-
 Each pixel's value is the box-filtered average of its samples: those of its grid if it
 is refined, its first pass's otherwise (the corners only decide). The choice depends only
 on the values of a pixel's samples and its neighbours', so it is the same on every run
@@ -95,13 +91,11 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import drjit as dr
-import mitsuba as mi
 import numpy as np
 
 from . import signature
-from .arrays import jit_array
-from .camera import corner_rays, grid_offset, pixel_means, pixel_rays
-from .chunks import Job, whole_packets
+from .camera import corner_rays, pixel_means
+from .chunks import Job
 
 # (n, contrast): a refined pixel gets the n x n grid of the last entry whose contrast, in
 # multiples of the threshold, its five samples' difference exceeds
@@ -166,7 +160,7 @@ class CornerJob:
 
     spp, pixels = 1, None  # one sample a corner, a range of corners
     samples, fitting, packet_margins = Job.samples, Job.fitting, Job.packet_margins
-    coherence, coherent = Job.coherence, True  # (a range: see chunks.Job)
+    coherent = True  # (a range: see chunks.Job)
 
     def __init__(self, width, height, top, bottom):
         self.width, self.height = width, height  # the image
@@ -177,99 +171,6 @@ class CornerJob:
     def rays(self, sensor, start, count, footprint=False):
         return corner_rays(sensor, self.width, self.height, self.first + start, count,
                            footprint)
-
-
-class GridJob:
-    """Pixels of several grids in one job, for ``chunks.Chunker``: ``groups``, (pixels, n)
-    pairs, each pixel (an image pixel number) traced with the n x n grid of strata centres
-    of its group (``camera.grid_offset``), pixel-major as a Job's, the groups one after the
-    other. A pixel's samples, and so its value, are those its group's own Job would trace:
-    one job rather than one a grid pays a job's fixed cost once (the Python tracing and
-    the launches of its kernels, about 8 ms) and traces wider wavefronts. The groups whose
-    pixels are whole packets (n^2 a multiple of PACKET: coherent, as their own Job's) come
-    first; the others' rays are traced alone (``coherence``)."""
-
-    def __init__(self, width, height, groups):
-        self.width, self.height = width, height  # the image
-        # (pixels, n), in the order given
-        self.given = [(np.asarray(pixels, np.uint32), n) for pixels, n in groups]
-        # the given groups with pixels, in the order traced: the coherent ones first
-        self.order = sorted((g for g, (pixels, _) in enumerate(self.given) if len(pixels)),
-                            key=lambda g: not whole_packets(self.given[g][1] ** 2))
-        self.groups = [self.given[g] for g in self.order]  # (pixels, n), in the order traced
-        self.pixels = np.concatenate([pixels for pixels, _ in self.groups] or
-                                     [np.empty(0, np.uint32)])  # uint32, in order
-        self.count = len(self.pixels)  # how many pixels
-        # each pixel's grid side, and the job's lane of each pixel's first sample (and, last,
-        # the job's lanes)
-        self.sides = np.concatenate([np.full(len(pixels), n, np.uint32)
-                                     for pixels, n in self.groups] or [np.empty(0, np.uint32)])
-        self.first_lane = np.concatenate(([0], np.cumsum(self.sides.astype(np.int64) ** 2)))
-        # the job's first pixel of each group (and, last, the pixels' count)
-        self.group_start = np.cumsum([0] + [len(pixels) for pixels, _ in self.groups])
-        # the pixels of the coherent groups: the job's first ones
-        self.packets = sum(len(pixels) for pixels, n in self.groups if whole_packets(n * n))
-
-    def samples(self, start, count):
-        return int(self.first_lane[start + count] - self.first_lane[start])
-
-    def fitting(self, start, lanes):
-        last = np.searchsorted(self.first_lane, self.first_lane[start] + lanes, "right") - 1
-        return max(int(last) - start, 1)
-
-    def packet_margins(self, start, count):
-        return 0, 0  # (a list: its pixels are each whole packets, or its rays traced alone)
-
-    def coherence(self, start, count):
-        """The coherent groups' rays as packets, the others' alone: True, False, or (a chunk
-        of both) a Bool per lane."""
-        if start + count <= self.packets:
-            return True
-        if start >= self.packets:
-            return False
-        split = self.samples(start, self.packets - start)  # (a multiple of PACKET)
-        return dr.arange(mi.UInt32, self.samples(start, count)) < dr.opaque(mi.UInt32, split)
-
-    def segments(self, start, count):
-        """The groups' parts in the job's pixels start .. start + count - 1: (group number,
-        its first pixel's number in the group, how many pixels, their first lane counted
-        from ``start``'s) for each group with pixels there."""
-        parts = []
-        for g, (first, end) in enumerate(zip(self.group_start[:-1], self.group_start[1:])):
-            lo, hi = max(first, start), min(end, start + count)
-            if lo < hi:
-                parts.append((g, int(lo - first), int(hi - lo), self.samples(start, lo - start)))
-        return parts
-
-    def rays(self, sensor, start, count, footprint=False):
-        """Camera rays of the job's pixels start .. start + count - 1 (``footprint``: with
-        their samples' footprints, 1 / n of a pixel, see camera.camera_rays)."""
-        sides = self.sides[start:start + count]
-        # each lane's pixel, counted from start (computed on the host: a few MB at most;
-        # handed over as jit_array's aligned copies, so the kernels are always the same)
-        local = jit_array(mi.UInt32, np.repeat(np.arange(count, dtype=np.uint32),
-                                               sides.astype(np.int64) ** 2))
-
-        def lane_value(kind, values):
-            return dr.gather(kind, jit_array(kind, values), local)
-
-        first = self.first_lane[start:start + count] - self.first_lane[start]
-        sample = dr.arange(mi.UInt32, self.samples(start, count)) - \
-            lane_value(mi.UInt32, first.astype(np.uint32))
-        # (1 / n and the footprint (n^2)^-0.5 as a Job's kernel has them: Python's floats
-        # rounded to float32)
-        ns = np.unique(sides)
-        side = np.searchsorted(ns, sides)  # each pixel's entry of ns
-        inverse, share = (np.array([constant(int(n)) for n in ns], np.float32)[side]
-                          for constant in (lambda n: 1.0 / n, lambda n: (n * n) ** -0.5))
-        inverse = lane_value(mi.Float, inverse)
-        # (the strata numbered row-major; row = sample // n, exact in float32 for any grid's
-        # n, without a division by data, which traps in a vector's unused lanes)
-        row = mi.UInt32(dr.floor((mi.Float(sample) + 0.5) * inverse))
-        offset = grid_offset(sample - row * lane_value(mi.UInt32, sides), row, inverse)
-        share = lane_value(mi.Float, share) if footprint else None
-        return pixel_rays(sensor, self.width, self.height,
-                          lane_value(mi.UInt32, self.pixels[start:start + count]), offset, share)
 
 
 def least_weight(threshold):
@@ -385,78 +286,72 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     first = top * width  # the band's first pixel
     offset = first_row * width  # the first pixel of ``values``
     levels = []
-    around = around[band].ravel()
-    by_path = None if smooth is None else same[band].ravel()
-    # Step 4, the probes, in one job: (the pixels', the grid's side, settles(agree, flat,
-    # own): bool arrays by pixel, the mean agrees with the first pass's value, the samples
-    # with one another, the pixel's own grid is the probe's; whether a pixel whose probe's
-    # samples all followed its centre's path (signature.one_path) is settled too, where
-    # by_path holds it). (A pixel between two refined ones whose own samples followed one
-    # path, and its probe's too, holds no detail its neighbours saw: their feature misses
-    # it by a sixth of a pixel.)
-    probes = ((around & (grid >= 0), BETWEEN_PROBE,
-               lambda agree, flat, own: agree & flat, by_path is not None),
-              (~around & (grid >= 0) & (sides[grid] >= EDGE_PROBE), EDGE_PROBE,
-               lambda agree, flat, own: own | (agree & ~flat), False))
-    groups = [((np.flatnonzero(mask) + first).astype(np.uint32), side)
-              for mask, side, _, _ in probes]
-    signed = least_weight(threshold) if any(len(pixels) and paths for (pixels, _), (*_, paths)
-                                            in zip(groups, probes)) else None
-    traced = trace_grids(chunker, estimate, GridJob(width, height, groups), signed, True)
-    for (pixels, side), (_, _, settles, paths), (means, spread, path) in \
-            zip(groups, probes, traced):
+
+    def probe(mask, side, settles, by_path=None):
+        """Trace the pixels of ``mask`` with a side x side grid; those ``settles(agree,
+        flat, own)`` (bool arrays by pixel: the mean agrees with the first pass's value; the
+        samples with one another; the pixel's own grid is the probe's), and those of
+        ``by_path`` (bool by pixel of the band, or None) whose probe's samples all followed
+        its centre's path (signature.one_path), take the probe's value and are done."""
+        pixels = (np.flatnonzero(mask) + first).astype(np.uint32)
         if not len(pixels):
-            continue
+            return
+        estimate.admit(len(pixels), side * side)
+        signed = None if by_path is None else least_weight(threshold)
+        means, spread, paths = trace_probe(chunker, Job(width, height, side * side,
+                                                        pixels=pixels), signed)
         agree = np.abs(means - values[pixels - offset]).max(axis=-1) <= SETTLE * threshold
         done = settles(agree, spread <= threshold, sides[grid[pixels - first]] == side)
-        if paths:
+        if paths is not None:
             done |= by_path[pixels - first] & \
-                signature.one_path(signatures.ravel()[pixels - offset], path)
+                signature.one_path(signatures.ravel()[pixels - offset], paths)
         if done.any():
             values[pixels[done] - offset] = means[done]
             levels.append(Level(pixels[done], side))
             grid[pixels[done] - first] = -1
-    # the grids, in one job
-    groups = [((np.flatnonzero(grid == k) + first).astype(np.uint32), n)
-              for k, (n, _) in enumerate(GRIDS)]
-    traced = trace_grids(chunker, estimate, GridJob(width, height, groups))
-    for (pixels, n), (means, _, _) in zip(groups, traced):
+
+    around = around[band].ravel()
+    # (a pixel between two refined ones whose own samples followed one path, and its probe's
+    # too, holds no detail its neighbours saw: their feature misses it by a sixth of a pixel)
+    probe(around & (grid >= 0), BETWEEN_PROBE, lambda agree, flat, own: agree & flat,
+          None if smooth is None else same[band].ravel())
+    probe(~around & (grid >= 0) & (sides[grid] >= EDGE_PROBE), EDGE_PROBE,
+          lambda agree, flat, own: own | (agree & ~flat))
+    for k, (n, _) in enumerate(GRIDS):
+        pixels = (np.flatnonzero(grid == k) + first).astype(np.uint32)
         if len(pixels):
-            values[pixels - offset] = means
+            estimate.admit(len(pixels), n * n)
+            trace_level(chunker, Job(width, height, n * n, pixels=pixels), values, offset)
             levels.append(Level(pixels, n))
     return Plan(chunker.sensor, width, height, spp, threshold, levels)
 
 
-def trace_grids(chunker, estimate, job, signed=None, spreads=False):
-    """Trace ``job``'s (a :class:`GridJob`'s) pixels through ``chunker``, each group first
-    admitted by the guards' ``estimate``. For each of its ``groups``, in their order: (means,
-    spread, paths), (count, 3) float32 each pixel's box-filtered value; with ``spreads``,
-    (count,) float32 the largest difference in one channel between two of its samples,
-    else None; with ``signed`` (``Tracer.trace``'s), (count, n^2) uint32 its samples' path
-    signatures, else None."""
-    results = [(np.empty((len(pixels), 3), np.float32),
-                np.empty(len(pixels), np.float32) if spreads else None,
-                None if signed is None else np.empty((len(pixels), n * n), np.uint32))
-               for pixels, n in job.given]
+def trace_level(chunker, job, values, offset=0):
+    """Trace ``job``'s pixels through ``chunker``, each one's box-filtered value written into
+    ``values`` ((H * W, 3), by pixel number less ``offset``)."""
+    def visit(start, count, color):
+        means = pixel_means(color, count, job.spp)
+        values[job.pixels[start:start + count] - offset] = dr.ravel(means).numpy().reshape(-1, 3)
+
+    chunker.run(job, visit)
+
+
+def trace_probe(chunker, job, signed=None):
+    """Trace ``job``'s pixels through ``chunker``: ((count, 3) float32, each pixel's
+    box-filtered value; (count,) float32, the largest difference in one channel between
+    two of its samples; (count, spp) uint32, its samples' path signatures, with ``signed``
+    (``Tracer.trace``'s), else None)."""
+    means = np.empty((job.count, 3), np.float32)
+    spread = np.empty(job.count, np.float32)
+    paths = None if signed is None else np.empty((job.count, job.spp), np.uint32)
 
     def visit(start, count, color, path=None):
-        samples = dr.ravel(color).numpy().reshape(-1, 3) if spreads else None
-        path = None if path is None else path.numpy()
-        for g, at, pixels, lane in job.segments(start, count):
-            spp = job.groups[g][1] ** 2
-            means, spread, paths = results[job.order[g]]
-            means[at:at + pixels] = \
-                dr.ravel(pixel_means(color, pixels, spp, lane)).numpy().reshape(-1, 3)
-            lanes = slice(lane, lane + pixels * spp)
-            if spread is not None:
-                own = samples[lanes].reshape(pixels, spp, 3)
-                spread[at:at + pixels] = (own.max(axis=1) - own.min(axis=1)).max(axis=-1)
-            if paths is not None:
-                paths[at:at + pixels] = path[lanes].reshape(pixels, spp)
+        means[start:start + count] = \
+            dr.ravel(pixel_means(color, count, job.spp)).numpy().reshape(-1, 3)
+        samples = dr.ravel(color).numpy().reshape(count, job.spp, 3)
+        spread[start:start + count] = (samples.max(axis=1) - samples.min(axis=1)).max(axis=-1)
+        if path is not None:
+            paths[start:start + count] = path.numpy().reshape(count, job.spp)
 
-    for pixels, n in job.given:
-        if len(pixels):
-            estimate.admit(len(pixels), n * n)
-    if job.count:
-        chunker.run(job, visit, signed=signed)
-    return results
+    chunker.run(job, visit, signed=signed)
+    return means, spread, paths

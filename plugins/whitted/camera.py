@@ -31,18 +31,10 @@ def stratum_offset(s, spp):
     n = int(round(spp ** 0.5))
     if n * n == spp:
         row = s // n
-        return grid_offset(s - row * n, row, 1.0 / n)
+        return mi.Point2f((mi.Float(s - row * n) + 0.5) / n, (mi.Float(row) + 0.5) / n)
     x = (mi.Float(s) + 0.5) / spp
     y = dr.fma(mi.Float(s), GOLDEN, 0.5)
     return mi.Point2f(x, y - dr.floor(y))
-
-
-def grid_offset(column, row, inv_n):
-    """Position in [0, 1)^2 of the centre of the stratum (``column``, ``row``) of an n x n
-    grid of strata (UInt32s). ``inv_n``: 1 / n, a Python float or a Float per lane (the
-    float32 nearest 1 / n either way: the same position, bit for bit, whether n is a
-    constant of the kernel or data)."""
-    return mi.Point2f((mi.Float(column) + 0.5) * inv_n, (mi.Float(row) + 0.5) * inv_n)
 
 
 def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None, footprint=False):
@@ -66,17 +58,10 @@ def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None, fo
         pixel = local + dr.opaque(mi.UInt32, first)
     else:
         pixel = local
-    return pixel_rays(sensor, width, height, pixel, offset, spp ** -0.5 if footprint else None)
-
-
-def pixel_rays(sensor, width, height, pixel, offset, footprint=None):
-    """The camera rays through the points ``offset`` (Point2f, in [0, 1)^2 of a pixel) of the
-    pixels ``pixel`` (UInt32) of a ``width`` x ``height`` image (``footprint``: see
-    :func:`sample`)."""
     row = pixel // width
     film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
                           (mi.Float(row) + offset.y) / height)
-    return sample(sensor, film_pos, footprint)
+    return sample(sensor, film_pos, spp ** -0.5 if footprint else None)
 
 
 def corner_rays(sensor, width, height, first, count, footprint=False):
@@ -92,8 +77,7 @@ def corner_rays(sensor, width, height, first, count, footprint=False):
 
 
 def sample(sensor, film_pos, footprint=None):
-    """The camera ray through ``film_pos``; with ``footprint`` (pixels: a float, or a Float
-    per lane), a
+    """The camera ray through ``film_pos``; with ``footprint`` (pixels), a
     ``mi.RayDifferential3f`` whose offset rays are that far in x and in y (the sample's
     footprint: anti-aliasing's filtered checkerboard reads it)."""
     if footprint is None:
@@ -119,22 +103,18 @@ def corner_jitter(corner):
     return (unit * 2.0 - 1.0) * CORNER_JITTER
 
 
-def pixel_sums(color, count, spp, first=0):
-    """Per pixel, the sum of its ``spp`` consecutive lanes of ``color`` (``count`` pixels, the
-    first one's lanes from lane ``first``)."""
+def pixel_sums(color, count, spp):
+    """Per pixel, the sum of its ``spp`` consecutive lanes of ``color`` (``count`` pixels)."""
     pixel = dr.arange(mi.UInt32, count) * spp
-    if first:  # (data, not a constant of the kernel)
-        pixel += dr.opaque(mi.UInt32, first)
     total = dr.gather(mi.Color3f, color, pixel)
     for s in range(1, spp):
         total += dr.gather(mi.Color3f, color, pixel + s)
     return total
 
 
-def pixel_means(color, count, spp, first=0):
-    """Per pixel, the box-filtered average of its ``spp`` consecutive lanes (Color3f; the
-    ``count`` pixels' lanes from lane ``first``)."""
-    total = pixel_sums(color, count, spp, first)
+def pixel_means(color, count, spp):
+    """Per pixel, the box-filtered average of its ``spp`` consecutive lanes (Color3f)."""
+    total = pixel_sums(color, count, spp)
     if spp > 1:
         total *= 1.0 / spp
     return total

@@ -5,8 +5,8 @@ samples per pixel. Its interface to the :class:`Chunker` (:class:`Job`'s; anti-a
 ``CornerJob`` has it too): ``count`` (pixels), ``rays(sensor, start, count, footprint)``,
 ``samples(start, count)`` (camera rays of pixels start .. start + count - 1),
 ``fitting(start, lanes)`` (how many pixels from start fit in that many camera rays, at least
-one), ``coherence(start, count)`` and ``packet_margins(start, count)`` (its rays traced in
-packets, see PACKET). It is traced in *chunks*: consecutive pixels of the job, all the
+one), ``coherent`` and ``packet_margins(start, count)`` (its rays traced in packets, see
+PACKET). It is traced in *chunks*: consecutive pixels of the job, all the
 samples of a pixel in the same chunk (so the box filter is per chunk), each chunk's
 whole ray tree at once. A pixel's value does not depend on the chunk it is in, so the
 image is the same, bit for bit, however it is split.
@@ -57,11 +57,6 @@ PROBE_RAYS = 1 << 20
 PACKET = 16
 
 
-def whole_packets(spp):
-    """Whether a pixel's ``spp`` samples are whole packets of PACKET lanes."""
-    return spp % PACKET == 0
-
-
 class Job:
     """Pixels to render with ``spp`` samples each: ``first`` .. ``first + count - 1`` of the
     image or, with ``pixels`` (a numpy uint32 array), those pixels in that order."""
@@ -77,7 +72,7 @@ class Job:
         # whether the camera rays are traced as coherent packets (Tracer.trace): a range's
         # neighbouring rays are, and a list's whose pixels are each whole packets (PACKET);
         # other lists' rays alone: their packets would depend on what else the list holds
-        self.coherent = pixels is None or whole_packets(spp)
+        self.coherent = pixels is None or spp % PACKET == 0
         self.total = width * height  # the pixels of the image's numbering
 
     def rays(self, sensor, start, count, footprint=False):
@@ -93,11 +88,6 @@ class Job:
     def samples(self, start, count):
         """The camera rays of the job's pixels start .. start + count - 1."""
         return count * self.spp
-
-    def coherence(self, start, count):
-        """Whether the camera rays of the job's pixels start .. start + count - 1 are traced as
-        coherent packets (``Tracer.trace``'s ``coherent``): the job's ``coherent``."""
-        return self.coherent
 
     def fitting(self, start, lanes):
         """How many of the job's pixels from start have at most ``lanes`` camera rays (at
@@ -249,7 +239,7 @@ class Chunker:
             trace = self.tracer.trace(self.scene,
                                       self._rays(job, start - before, before + count + after),
                                       terms, max_rays, lazy, first_hit, asked, signed,
-                                      job.coherence(start - before, before + count + after))
+                                      job.coherent)
         if not before and not after:
             return trace
         # (the offset is data, not a constant of the kernel: it changes from chunk to chunk)

@@ -135,19 +135,6 @@ def preliminary(t, uv, shape, prim):
     return pi
 
 
-def closest_hits(scene, ray, coherent):
-    """Each ray's closest hit (PreliminaryIntersection3f), from the ray tracer. ``coherent``:
-    True, the rays are traced as coherent packets; False, each alone (``Tracer.trace``); or a
-    Bool per lane, those lanes' rays as packets and the others alone: two queries, each
-    masked to its lanes (a query's flag is one for all its lanes). A packet's lanes must
-    then all be coherent or all not (chunks.PACKET)."""
-    if isinstance(coherent, bool):
-        return scene.ray_intersect_preliminary(ray, coherent=coherent)
-    packets = scene.ray_intersect_preliminary(ray, coherent=True, active=coherent)
-    alone = scene.ray_intersect_preliminary(ray, coherent=False, active=~coherent)
-    return dr.select(coherent, packets, alone)
-
-
 def barycentrics(corners, p):
     """(b1, b2) of the point ``p`` in the plane of the triangle ``corners`` (p0, p1, p2): p =
     p0 + b1 (p1 - p0) + b2 (p2 - p0), by least squares (exact on the plane)."""
@@ -369,7 +356,7 @@ class HitTable:
         """The surface interaction of each ray (``supported`` must be True); ``pi``: the
         rays' closest hits, if already found (else the ray tracer is asked)."""
         if pi is None:
-            pi = closest_hits(scene, ray, coherent)
+            pi = scene.ray_intersect_preliminary(ray, coherent=coherent)
         shape_id = dr.reinterpret_array(mi.UInt32, pi.shape)
         valid, kind, row = self.entries(shape_id, pi.is_valid())
         attached = self.moving or dr.grad_enabled(ray.o, ray.d)

@@ -46,7 +46,7 @@ import mitsuba as mi
 import numpy as np
 
 from .arrays import Assembled
-from .hits import NO_SHAPE, closest_hits, preliminary
+from .hits import NO_SHAPE, preliminary
 
 CAMERA_BYTES = 20  # t, uv (two floats), shape (NO_SHAPE: no hit), primitive: 4 bytes each
 SHADOW_BYTES = 8  # shape (NO_SHAPE: not blocked), primitive: 4 bytes each
@@ -146,7 +146,7 @@ class _Recorder:
         self.shadows = {}  # light: its fields
 
     def camera(self, scene, ray, coherent):
-        pi = closest_hits(scene, ray, coherent)
+        pi = scene.ray_intersect_preliminary(ray, coherent=coherent)
         fields = (pi.t, pi.prim_uv.x, pi.prim_uv.y, _shape(pi), mi.UInt32(pi.prim_index))
         dr.schedule(fields)
         self.parts[self.first] = (fields, self.shadows)

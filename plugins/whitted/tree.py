@@ -27,7 +27,7 @@ from raymitsuba.util import no_cyclic_gc
 
 from . import bailout, signature
 from .differentials import offset_children
-from .hits import HitTable, closest_hits
+from .hits import HitTable
 from .lift import lifted_point
 from .surfaces import NO_SLOT, SceneTerms, with_kt_derivative
 from ..phong import phong_local
@@ -181,9 +181,8 @@ class Tracer:
         packets (Embree's packet traversal, packets of the vector width, 16 lanes with
         AVX-512: faster for neighbouring rays, but an exact tie between two surfaces,
         coincident faces or a ray through a shared edge, may resolve by the ray's packet
-        mates); False: each ray alone, for rays whose packets depend on how the image is cut;
-        or a Bool per lane, for a job of both kinds (chunks.Job's ``coherence``,
-        hits.closest_hits)."""
+        mates); False: each ray alone, for rays whose packets depend on how the image is cut
+        (chunks.Job's ``coherent``)."""
         # (no kr or kt > 0: one generation, no child to bail out; the bound reads the lights'
         # colors on the host, which waits for every kernel queued)
         limits = None if not terms.surfaces.any_specular else \
@@ -201,7 +200,7 @@ class Tracer:
             last = depth == self.max_depth or not terms.surfaces.any_specular
             step = self.step(scene, terms, ray, depth, not last,
                              *((first_hit, queries) if depth == 0 else (None, None)), signed,
-                             coherent if depth == 0 else False)
+                             coherent and depth == 0)
             generation = Generation(step.local)
             generation.signature, generation.path_weight = step.signature, path_weight
             generations.append(generation)
@@ -313,10 +312,8 @@ class Tracer:
         if geometry.supported:
             pi = None if queries is None else queries.camera(scene, ray, coherent)
             return geometry.intersect(scene, ray, coherent, pi)
-        flags = mi.RayFlags.AllNonDifferentiable
-        if isinstance(coherent, bool):
-            return scene.ray_intersect(ray, ray_flags=flags, coherent=coherent)
-        return closest_hits(scene, ray, coherent).compute_surface_interaction(ray, flags)
+        return scene.ray_intersect(ray, ray_flags=mi.RayFlags.AllNonDifferentiable,
+                                   coherent=coherent)
 
     def surface_key(self, geometry, si, hit):
         """Which part of its shape each lane hit, for its signature (``HitTable.surface_key``;
