@@ -305,7 +305,7 @@ class Terms:
                                            choices, "first")
         return choice
 
-    def jump(self, ends, axis, w, kind, light, depth, followed=None):
+    def jump(self, ends, axis, w, kind, light, depth, followed):
         """f_L - f_R across each pair's crossing: the colors of two rays traced just either
         side of it (LIMIT lattice units, RIM_LIMIT for a visibility edge of the surface seen;
         within the pair; both sides stacked, one trace), where they see what L and R see
@@ -363,7 +363,7 @@ class Terms:
         if len(visible):
             for s, (point, flat_point) in enumerate(((ends.L, ends.l), (ends.R, ends.r))):
                 off = near[s][sides.paths[s].differs(self.path_at(flat_point[near[s]]))
-                              | (followed is not None and followed[near[s]])]
+                              | followed[near[s]]]
                 if len(off):
                     colors[s, off] = self.colors_at(tuple(p[off] for p in point))
         if len(keyed):
