@@ -24,8 +24,9 @@ Parameters (all differentiable; exposed by ``mi.traverse`` under these names):
 * ``reflectivity`` (float, 0): kr; ``refractivity`` (float, 0): kt
 * ``ior`` (float, 1): index of refraction eta inside the object (1 outside)
 * ``index`` (int, not a parameter): the material's number in file order, the i of its
-  key ``mat{i}``. It keeps equal materials distinct: ``mi.load_dict`` merges objects
-  whose properties are all equal, which would drop the keys of all but one.
+  key ``mat{i}``. It keeps equal materials distinct where a loader merges objects whose
+  properties are all equal (``mi.load_dict``'s ``optimize``, which ``raymitsuba.load``
+  turns off), which would drop the keys of all but one.
 """
 
 import drjit as dr

@@ -121,7 +121,15 @@ def load(source, width=None, height=None, spp=None, max_depth=None, srgb=None, d
         # and a thread waiting in Mitsuba's parallel loader runs the next pending constructor
         # inside that wait, so 1,000 meshes nested 1,000 constructors deep (RecursionError).
         # (Parallel is also slower with the Python plugins.)
-        scene = mi.load_dict(scene_dict, parallel=False)
+        # Unoptimized: the scene's shapes are the dict's, in its order. Mitsuba's optimization
+        # merges the meshes of one material into a plain mesh (planes stopped being planes)
+        # through a hash table keyed by the material's address, so the shapes came out in an
+        # order that changed from one load to the next. A ray that ties between two shapes
+        # (two walls' seam) hits the one Embree meets first, which follows that order: the
+        # same scene gave another image in some loads. (The other optimization, merging
+        # equal objects, would drop all but one of equal materials' keys; the translator
+        # merges its meshes itself.)
+        scene = mi.load_dict(scene_dict, parallel=False, optimize=False)
     return Loaded(model, options, scene_dict, scene, source_data(source, model))
 
 
