@@ -113,7 +113,7 @@ def test_the_scenes_shapes_are_the_translators_in_its_order():
     mesh (cornell_box.ray's three walls of mat1: no longer planes), put the merged shapes
     after the others in an order set by the materials' addresses, and a ray tying between
     two walls then hit whichever came first: the anti-aliased image differed in about one
-    load in ten."""
+    load in fifteen."""
     path = os.path.join(os.path.dirname(__file__), "..", "scenes", "cornell_box.ray")
     for _ in range(3):
         loaded = raymitsuba.load(path, width=8, height=6)
