@@ -10,8 +10,8 @@
    for its contrast. Where its footprint on a checkerboard is distorted by perspective
    past what the filter takes as first order, or holds a corner of the board
    (``checkerboard.residual_distortion``, ``filtered_board``), it is traced with the
-   2 x 2 to 4 x 4 grid whose samples' footprints are (``signature.grid_code``), without
-   a probe. Silhouettes, shadows' edges, creases, a spotlight's cone, total internal
+   2 x 2 to 4 x 4 grid whose samples' footprints are (``signature.grid_code``).
+   Silhouettes, shadows' edges, creases, a spotlight's cone, total internal
    reflection and the same seen in mirrors and through glass change the signature: those
    pixels go on as below. A subtree whose path weight is below the threshold does not
    count (whatever it sees changes the sample by less).
@@ -38,27 +38,23 @@
    contrast within 2/255 of a 256-sample render (the 8 x 8 and 12 x 12 steps: 94 % to
    98.5 % of the pixels of the fine-detail benchmark; README, "Anti-aliasing").
 
-4. Most refined pixels need no fine grid (issue 31: on the benchmark's reflective scene
-   90 % of the pixels given 12 x 12 were already within 2/255 of the reference at their
-   first pass): before its grid, a pixel is traced with a *probe*, a coarser grid, which
-   settles it (its value is the probe's, its grid no finer) where that is evidence
-   enough. A pixel refined for its neighbours (step 2) is probed with ``BETWEEN_PROBE``
-   and settled where the probe's samples agree with one another (within the threshold)
-   and their mean with its first pass's value (within ``SETTLE`` x the threshold): it is
+4. A pixel refined for its neighbours (step 2) is given the finest grid, but most such
+   pixels turn out flat: before its grid it is traced with a *probe*, the
+   ``BETWEEN_PROBE`` x ``BETWEEN_PROBE`` grid, which settles it (its value is the
+   probe's) where the probe's samples agree with one another (within the threshold) and
+   their mean with its first pass's value (within ``SETTLE`` x the threshold): it is
    flat at the probe's resolution (towards the horizon, where the filtered board is a
    smooth grey); a wire the probe's samples miss too is the risk, which the probe's
    spacing (a sixth of a pixel) keeps to sub-pixel detail thinner than 1/6 of a pixel.
-   A pixel whose grid is finer than ``EDGE_PROBE`` x ``EDGE_PROBE`` is probed with that
-   grid and settled where its samples differ (the pixel holds an edge) and yet their
-   mean agrees with the first pass's value within ``SETTLE`` x the threshold: the first
-   pass's filtered footprint already averaged what they differ by (a checker edge seen
-   directly); a point-sampled edge (a silhouette, a shadow, a reflection) makes the
-   mean a mixture the centre's one value does not match, but by chance, which the
-   probe's 16 samples and the tight ``SETTLE`` make rare. The pixels whose grid is the
-   probe's own are traced in the probe's job and always settled by it. A pixel refined
-   for its neighbours whose own samples followed one path (step 0) is settled too where
-   all its probe's samples followed that path (``signature.one_path``): no detail of its
-   neighbours' reaches into it, short of a sixth of a pixel.
+   Such a pixel whose own samples followed one path (step 0) is settled too where all
+   its probe's samples followed that path (``signature.one_path``): no detail of its
+   neighbours' reaches into it, short of a sixth of a pixel. A pixel refined for its
+   own samples goes straight to its grid. (A 4 x 4 probe before the grids finer than
+   4 x 4, settling a pixel whose samples differed but whose mean agreed with the first
+   pass's value, cost more samples than it saved and was removed, 2026-12-07: on the
+   benchmark's reflective scene, the showcase, benchmark_glass and whitted it settled
+   0-58 % of the pixels given 12 x 12, 11-43 % of those given 6 x 6 and 15-45 % of
+   those given 8 x 8, against the 12.5 %, 80 % and 33 % that repay its 16 samples.)
 
 5. A checkerboard is averaged over each sample's *footprint* (its share of the pixel: the
    whole pixel for the first pass and the corners, 1/n of it for an n x n grid), from the
@@ -100,11 +96,10 @@ from .chunks import Job
 # (n, contrast): a refined pixel gets the n x n grid of the last entry whose contrast, in
 # multiples of the threshold, its five samples' difference exceeds
 GRIDS = ((2, 0.0), (3, 2.0), (4, 4.0), (6, 12.0), (8, 20.0), (12, 35.0))
-# The probes (step 4 above): the grid's side of a pixel refined for its neighbours, and of a
-# pixel whose own grid is finer; and how close, in multiples of the threshold, a probe's
-# mean must be to the first pass's value to settle a pixel
+# The probe (step 4 above): the grid's side of a pixel refined for its neighbours, and how
+# close, in multiples of the threshold, its mean must be to the first pass's value to
+# settle the pixel
 BETWEEN_PROBE = 6
-EDGE_PROBE = 4
 SETTLE = 0.25
 BAND = 1024  # rows compared at a time (bounded host memory on huge images)
 # The rows a band's first pass traces above and below it: a pixel between two refined ones
@@ -278,7 +273,7 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     # a pixel refined for its neighbours holds detail its own samples missed: the finest grid
     grid = np.where(around[band], len(GRIDS) - 1, grid_of(spread[band], threshold))
     if smooth is not None:  # step 0: the grids the footprints need, traced in the same jobs
-        # as the others' (a 4 x 4 one is the edge probe's own grid, which it settles)
+        # as the others'
         smooth = np.where(around, 1, smooth)[band]
         refined |= smooth > 1
         grid = np.where(smooth > 1, np.searchsorted(sides, smooth), grid)
@@ -287,10 +282,9 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     offset = first_row * width  # the first pixel of ``values``
     levels = []
 
-    def probe(mask, side, settles, by_path=None):
-        """Trace the pixels of ``mask`` with a side x side grid; those ``settles(agree,
-        flat, own)`` (bool arrays by pixel: the mean agrees with the first pass's value; the
-        samples with one another; the pixel's own grid is the probe's), and those of
+    def probe(mask, side, by_path=None):
+        """Trace the pixels of ``mask`` with a side x side grid; those whose samples agree
+        with one another and whose mean agrees with the first pass's value, and those of
         ``by_path`` (bool by pixel of the band, or None) whose probe's samples all followed
         its centre's path (signature.one_path), take the probe's value and are done."""
         pixels = (np.flatnonzero(mask) + first).astype(np.uint32)
@@ -301,7 +295,7 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
         means, spread, paths = trace_probe(chunker, Job(width, height, side * side,
                                                         pixels=pixels), signed)
         agree = np.abs(means - values[pixels - offset]).max(axis=-1) <= SETTLE * threshold
-        done = settles(agree, spread <= threshold, sides[grid[pixels - first]] == side)
+        done = agree & (spread <= threshold)
         if paths is not None:
             done |= by_path[pixels - first] & \
                 signature.one_path(signatures.ravel()[pixels - offset], paths)
@@ -313,10 +307,7 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     around = around[band].ravel()
     # (a pixel between two refined ones whose own samples followed one path, and its probe's
     # too, holds no detail its neighbours saw: their feature misses it by a sixth of a pixel)
-    probe(around & (grid >= 0), BETWEEN_PROBE, lambda agree, flat, own: agree & flat,
-          None if smooth is None else same[band].ravel())
-    probe(~around & (grid >= 0) & (sides[grid] >= EDGE_PROBE), EDGE_PROBE,
-          lambda agree, flat, own: own | (agree & ~flat))
+    probe(around & (grid >= 0), BETWEEN_PROBE, None if smooth is None else same[band].ravel())
     for k, (n, _) in enumerate(GRIDS):
         pixels = (np.flatnonzero(grid == k) + first).astype(np.uint32)
         if len(pixels):
