@@ -46,15 +46,30 @@
    flat at the probe's resolution (towards the horizon, where the filtered board is a
    smooth grey); a wire the probe's samples miss too is the risk, which the probe's
    spacing (a sixth of a pixel) keeps to sub-pixel detail thinner than 1/6 of a pixel.
+   Where the probe's samples differ (it saw the detail), the probe is the pixel's first
+   look at it: their contrast (the largest difference between two of them) chooses the
+   grid as a pixel's five samples do (step 3), and where that grid is no finer than the
+   probe's own, the probe's value stands. (Those pixels were given the finest grid until
+   2026-12-07; nearly all of them asked for 4 x 4 or less.) A flat probe whose mean
+   disagrees with the first pass's value (a detail the centre hit and the probe's samples
+   missed) keeps the finest grid.
    Such a pixel whose own samples followed one path (step 0) is settled too where all
    its probe's samples followed that path (``signature.one_path``): no detail of its
-   neighbours' reaches into it, short of a sixth of a pixel. A pixel refined for its
-   own samples goes straight to its grid. (A 4 x 4 probe before the grids finer than
-   4 x 4, settling a pixel whose samples differed but whose mean agreed with the first
-   pass's value, cost more samples than it saved and was removed, 2026-12-07: on the
-   benchmark's reflective scene, the showcase, benchmark_glass and whitted it settled
-   0-58 % of the pixels given 12 x 12, 11-43 % of those given 6 x 6 and 15-45 % of
-   those given 8 x 8, against the 12.5 %, 80 % and 33 % that repay its 16 samples.)
+   neighbours' reaches into it, short of a sixth of a pixel.
+   A pixel refined for its own samples whose grid is the finest is first probed with the
+   ``EDGE_PROBE`` x ``EDGE_PROBE`` grid and settled where its samples differ (the pixel
+   holds an edge) and yet their mean agrees with the first pass's value within
+   ``SETTLE`` x the threshold: the first pass's filtered footprint already averaged what
+   they differ by (a checker edge seen directly); a point-sampled edge (a silhouette, a
+   shadow, a reflection) makes the mean a mixture the centre's one value does not match,
+   but by chance, which the probe's 16 samples and the tight ``SETTLE`` make rare. Other
+   refined pixels go straight to their grid. The probe repays its 16 samples where it
+   settles more than 16 / (n^2 - 16) of the pixels given n x n: 12.5 % for 12 x 12, 33 %
+   for 8 x 8, 80 % for 6 x 6. Counted on the benchmark's reflective scene, the showcase,
+   benchmark_glass and whitted (2026-12-07), it settled 11-43 % of the pixels given 6 x 6
+   and 11-45 % of those given 8 x 8 at every threshold from 0.01 to 0.05, so those are not
+   probed; of those given 12 x 12 it settled 0-58 % at the default threshold and 10-32 %
+   at 0.01, where it saves the showcase 14 % of its time.
 
 5. A checkerboard is averaged over each sample's *footprint* (its share of the pixel: the
    whole pixel for the first pass and the corners, 1/n of it for an n x n grid), from the
@@ -96,10 +111,11 @@ from .chunks import Job
 # (n, contrast): a refined pixel gets the n x n grid of the last entry whose contrast, in
 # multiples of the threshold, its five samples' difference exceeds
 GRIDS = ((2, 0.0), (3, 2.0), (4, 4.0), (6, 12.0), (8, 20.0), (12, 35.0))
-# The probe (step 4 above): the grid's side of a pixel refined for its neighbours, and how
-# close, in multiples of the threshold, its mean must be to the first pass's value to
-# settle the pixel
+# The probes (step 4 above): the grid's side of a pixel refined for its neighbours, and of a
+# pixel whose own grid is the finest; and how close, in multiples of the threshold, a probe's
+# mean must be to the first pass's value to settle a pixel
 BETWEEN_PROBE = 6
+EDGE_PROBE = 4
 SETTLE = 0.25
 BAND = 1024  # rows compared at a time (bounded host memory on huge images)
 # The rows a band's first pass traces above and below it: a pixel between two refined ones
@@ -282,11 +298,14 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     offset = first_row * width  # the first pixel of ``values``
     levels = []
 
-    def probe(mask, side, by_path=None):
-        """Trace the pixels of ``mask`` with a side x side grid; those whose samples agree
-        with one another and whose mean agrees with the first pass's value, and those of
-        ``by_path`` (bool by pixel of the band, or None) whose probe's samples all followed
-        its centre's path (signature.one_path), take the probe's value and are done."""
+    def probe(mask, side, settles, by_path=None, regrid=False):
+        """Trace the pixels of ``mask`` with a side x side grid. Those for which
+        ``settles(agree, flat, asks)`` holds (by pixel: the probe's mean agrees with the
+        first pass's value; its samples agree with one another; the side of the grid their
+        contrast asks for, GRIDS), and those of ``by_path`` (bool by pixel of the band, or
+        None) whose probe's samples all followed its centre's path (signature.one_path),
+        take the probe's value and are done; with ``regrid``, the others whose samples
+        differ get the grid their contrast asks for."""
         pixels = (np.flatnonzero(mask) + first).astype(np.uint32)
         if not len(pixels):
             return
@@ -295,10 +314,14 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
         means, spread, paths = trace_probe(chunker, Job(width, height, side * side,
                                                         pixels=pixels), signed)
         agree = np.abs(means - values[pixels - offset]).max(axis=-1) <= SETTLE * threshold
-        done = agree & (spread <= threshold)
+        flat = spread <= threshold
+        asked = grid_of(spread, threshold)
+        done = settles(agree, flat, sides[asked])
         if paths is not None:
             done |= by_path[pixels - first] & \
                 signature.one_path(signatures.ravel()[pixels - offset], paths)
+        if regrid:
+            grid[pixels[~done & ~flat] - first] = asked[~done & ~flat]
         if done.any():
             values[pixels[done] - offset] = means[done]
             levels.append(Level(pixels[done], side))
@@ -307,7 +330,11 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     around = around[band].ravel()
     # (a pixel between two refined ones whose own samples followed one path, and its probe's
     # too, holds no detail its neighbours saw: their feature misses it by a sixth of a pixel)
-    probe(around & (grid >= 0), BETWEEN_PROBE, None if smooth is None else same[band].ravel())
+    probe(around & (grid >= 0), BETWEEN_PROBE,
+          lambda agree, flat, asks: (agree & flat) | (~flat & (asks <= BETWEEN_PROBE)),
+          None if smooth is None else same[band].ravel(), regrid=True)
+    probe(~around & (grid == len(GRIDS) - 1), EDGE_PROBE,
+          lambda agree, flat, asks: agree & ~flat)
     for k, (n, _) in enumerate(GRIDS):
         pixels = (np.flatnonzero(grid == k) + first).astype(np.uint32)
         if len(pixels):
