@@ -69,7 +69,7 @@
    benchmark_glass and whitted (2026-12-07), it settled 11-43 % of the pixels given 6 x 6
    and 11-45 % of those given 8 x 8 at every threshold from 0.01 to 0.05, so those are not
    probed; of those given 12 x 12 it settled 0-58 % at the default threshold and 10-32 %
-   at 0.01, where it saves the showcase 14 % of its time.
+   at 0.01, where it saves the showcase 15 % of its time.
 
 5. A checkerboard is averaged over each sample's *footprint* (its share of the pixel: the
    whole pixel for the first pass and the corners, 1/n of it for an n x n grid), from the

@@ -151,6 +151,43 @@ def test_a_pixel_between_two_refined_ones_is_refined():
     assert not antialias.between(corner)[0, 0]
 
 
+def test_a_probe_that_sees_faint_detail_between_two_refined_pixels_gives_its_value(mi):
+    """A pixel refined for its neighbours whose probe's samples differ by a contrast that
+    asks for a grid no finer than the probe's (GRIDS) takes the probe's value: a faint
+    piece (0.1, five times the threshold 0.02: a 4 x 4 grid) inside a gap of a thin strip,
+    missed by the gap row's centres and corners, is seen by two of the 6 x 6 probe's 36
+    samples. (It used to get the finest grid, 12 x 12: four of its 144 samples.)"""
+    from raymitsuba.plugins.whitted import antialias, camera
+    from support import load_ray
+
+    width, height = 16, 9
+    side = 2 * 5 * np.tan(np.radians(22.5)) / height  # a pixel's side at z = 0 (see strip)
+    half = side / 3  # a strip two thirds of a pixel wide on the middle corner column
+
+    def rect(y0, y1):
+        return (f"triangle {-half} {y0} 0  {half} {y0} 0  {half} {y1} 0\n"
+                f"triangle {-half} {y0} 0  {half} {y1} 0  {-half} {y1} 0\n")
+
+    # the gap: the middle row (y in [-side / 2, side / 2]); the strip stops a quarter of a
+    # pixel short of its corners (moved by at most CORNER_JITTER), and the piece lies 0.3 to
+    # 0.45 of a pixel from its top: the probe's samples at 5/12 of a pixel (one row), a 12 x
+    # 12 grid's at 9/24 (one row); two of the probe's columns of samples (3/4 and 11/12 of
+    # a pixel from the far side) lie within the strip, four of the grid's
+    assert camera.CORNER_JITTER < 0.25
+    scene = ("light 0.1 0.1 0.1 ambient\nmaterial 1 1 1  1 0 0 1  0 0 1\n"
+             + rect(0.75 * side, 100) + rect(-100, -0.75 * side)
+             + rect(0.05 * side, 0.2 * side))
+    loaded = load_ray(scene, width, height)
+    loaded.integrator.aa = 0.02
+    image = loaded.integrator.render_array(loaded.scene)
+    middle, gap = width // 2, height // 2
+    gap_pixels = gap * width + np.array([middle - 1, middle])
+    probed = {int(pixel) for level in loaded.integrator.plan.levels
+              if level.n == antialias.BETWEEN_PROBE for pixel in level.pixels}
+    assert set(gap_pixels.tolist()) <= probed
+    np.testing.assert_allclose(image[gap, middle - 1:middle + 1], 0.1 * 2 / 36, rtol=1e-5)
+
+
 def test_the_grid_follows_the_contrast():
     from raymitsuba.backend import mitsuba
 
