@@ -155,8 +155,8 @@ def test_a_probe_that_sees_faint_detail_between_two_refined_pixels_gives_its_val
     """A pixel refined for its neighbours whose probe's samples differ by a contrast that
     asks for a grid no finer than the probe's (GRIDS) takes the probe's value: a faint
     piece (0.1, five times the threshold 0.02: a 4 x 4 grid) inside a gap of a thin strip,
-    missed by the gap row's centres and corners, is seen by two of the 6 x 6 probe's 36
-    samples. (It used to get the finest grid, 12 x 12: four of its 144 samples.)"""
+    missed by the gap row's centres and corners, is seen by some of the probe's samples.
+    (It used to get the finest grid.)"""
     from raymitsuba.plugins.whitted import antialias, camera
     from support import load_ray
 
@@ -170,9 +170,8 @@ def test_a_probe_that_sees_faint_detail_between_two_refined_pixels_gives_its_val
 
     # the gap: the middle row (y in [-side / 2, side / 2]); the strip stops a quarter of a
     # pixel short of its corners (moved by at most CORNER_JITTER), and the piece lies 0.3 to
-    # 0.45 of a pixel from its top: the probe's samples at 5/12 of a pixel (one row), a 12 x
-    # 12 grid's at 9/24 (one row); two of the probe's columns of samples (3/4 and 11/12 of
-    # a pixel from the far side) lie within the strip, four of the grid's
+    # 0.45 of a pixel from its top, across the third of each of the two pixels beside the
+    # middle column that is nearer to it
     assert camera.CORNER_JITTER < 0.25
     scene = ("light 0.1 0.1 0.1 ambient\nmaterial 1 1 1  1 0 0 1  0 0 1\n"
              + rect(0.75 * side, 100) + rect(-100, -0.75 * side)
@@ -182,10 +181,21 @@ def test_a_probe_that_sees_faint_detail_between_two_refined_pixels_gives_its_val
     image = loaded.integrator.render_array(loaded.scene)
     middle, gap = width // 2, height // 2
     gap_pixels = gap * width + np.array([middle - 1, middle])
+    n = antialias.BETWEEN_PROBE
     probed = {int(pixel) for level in loaded.integrator.plan.levels
-              if level.n == antialias.BETWEEN_PROBE for pixel in level.pixels}
+              if level.n == n for pixel in level.pixels}
     assert set(gap_pixels.tolist()) <= probed
-    np.testing.assert_allclose(image[gap, middle - 1:middle + 1], 0.1 * 2 / 36, rtol=1e-5)
+
+    def on_the_piece(n):
+        """The share of an n x n grid's samples (at (i + 1/2) / n) on the piece: (columns
+        within 1/3 of the middle line, in either pixel) x (rows 0.3 to 0.45 from the top;
+        the same from the bottom, the grid being symmetric)."""
+        offsets = (np.arange(n) + 0.5) / n
+        return np.sum(offsets >= 2 / 3) * np.sum((offsets >= 0.3) & (offsets <= 0.45)) / n**2
+
+    assert on_the_piece(n) > 0 and on_the_piece(n) != on_the_piece(antialias.GRIDS[-1][0])
+    np.testing.assert_allclose(image[gap, middle - 1:middle + 1], 0.1 * on_the_piece(n),
+                               rtol=1e-5)
 
 
 def test_the_grid_follows_the_contrast():
