@@ -68,10 +68,11 @@
    refined pixels go straight to their grid. The probe repays its 16 samples where it
    settles more than 16 / (n^2 - 16) of the pixels given n x n: 12.5 % for 12 x 12, 33 %
    for 8 x 8, 80 % for 6 x 6. Counted on the benchmark's reflective scene, the showcase,
-   benchmark_glass and whitted (2026-12-07), it settled 11-43 % of the pixels given 6 x 6
-   and 11-45 % of those given 8 x 8 at every threshold from 0.01 to 0.05, so those are not
-   probed; of those given 12 x 12 it settled 0-58 % at the default threshold and 10-32 %
-   at 0.01, where it saves the showcase 15 % of its time.
+   benchmark_glass and whitted (2026-12-07, thresholds 0.01, 0.02 and 0.05), it settled
+   0-43 % of the pixels given 6 x 6 and 0-45 % of those given 8 x 8 (33 % or more on two
+   of the scenes at 0.02, on none at 0.01 or 0.05), so those are not probed; of those
+   given 12 x 12 it settled 0-58 % at 0.02 and 10-32 % at 0.01, where it saves the
+   showcase 15 % of its time.
 
 5. A checkerboard is averaged over each sample's *footprint* (its share of the pixel: the
    whole pixel for the first pass and the corners, 1/n of it for an n x n grid), from the
