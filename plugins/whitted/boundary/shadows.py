@@ -51,8 +51,8 @@ class Shadows:
             if made is None:  # (the blocker's face and edge where the pair's segment of
                 # shadow rays leaves the blocking mesh: Visibility.outline)
                 faces = Faces(table, blocker[:, 0], blocker[:, 1])
-                faces, edge = self.outline(table, shadow, faces)
-                made = (crosses, edge, faces.prim if faces.walked else None)
+                _, edge, walked = self.outline(table, shadow, faces)
+                made = (crosses, edge, walked)
             choices[(name, "shadow", j)] = (crosses,) + made[1:]
             _, edge, prim = made
             blocking = Faces(table, stacked(blocker[:, 0], lanes), stacked(blocker[:, 1], lanes))

@@ -33,13 +33,11 @@ class Faces:
         ids = jit_array(mi.UInt32, np.where(shape == NO_HIT, 0, shape).astype(np.uint32))
         self.valid, self.kind, self.row = table.entries(ids, jit_array(mi.Bool, shape != NO_HIT))
         self.prim = jit_array(mi.UInt32, prim.astype(np.uint32))
-        self.walked = False  # (whether Visibility.outline may have moved some lane's prim)
 
-    def with_prim(self, prim, walked=False):
+    def with_prim(self, prim):
         """The same shapes' primitives ``prim`` (a UInt32 per lane, on the device)."""
         out = object.__new__(Faces)
         out.valid, out.kind, out.row, out.prim = self.valid, self.kind, self.row, prim
-        out.walked = walked
         return out
 
 
@@ -102,8 +100,7 @@ class Visibility:
             # sample's there: a glass cone's and a cone in a mirror floor's camera keys,
             # seeds 22 and 28 of benchmarks/random_edges.py, lost 1-5 points with it)
             if from_eye:
-                near, n_edge = self.outline(table, ray, near, from_eye, far, flat)
-                n_walked = near.prim if near.walked else None
+                near, n_edge, n_walked = self.outline(table, ray, near, from_eye, far, flat)
             else:
                 n_edge, n_walked = self.crossed_edge(table, ray, near, from_eye), None
             with dr.suspend_grad():
@@ -305,8 +302,9 @@ class Visibility:
         return edge, nearest
 
     def outline(self, table, ray, faces, from_eye=False, far=None, flat=None):
-        """(faces, edge) where each pair's segment leaves its face's mesh (``faces``:
-        :class:`Faces`), starting from the edge through which it leaves that face
+        """(faces, edge, walked) where each pair's segment leaves its face's mesh (``faces``:
+        :class:`Faces`; ``walked``: their primitives, a UInt32 per pair, where the walk below
+        ran, else None: every pair's face is its own), starting from the edge through which it leaves that face
         (:meth:`crossed_edge`'s, found here with where along the segment it lies). Where
         that edge is no edge of the surface's -- another face of the mesh shares it
         (``HitTable.neighbours``), the segment goes on into it, and the look does not jump
@@ -323,7 +321,7 @@ class Visibility:
         face through a spoke, whose line is no edge and moves as the spoke does; the rim is
         where it leaves the next face.)"""
         if not table.has_meshes:
-            return faces, dr.full(mi.Int32, -1, dr.width(faces.prim))
+            return faces, dr.full(mi.Int32, -1, dr.width(faces.prim)), None
         with dr.suspend_grad():
             mesh = faces.valid & ((faces.kind & MESH) != 0)
             sides = self.edges_at_ends(table, ray, faces, mesh, from_eye)
@@ -353,7 +351,9 @@ class Visibility:
                 prim = dr.select(active, there, prim)
                 edge = dr.select(active, leaves, edge)
                 leaves_at = dr.select(active, at, leaves_at)
-            return (faces.with_prim(prim, walked=True) if walked else faces), edge
+            if not walked:
+                return faces, edge, None
+            return faces.with_prim(prim), edge, prim
 
     def dips_behind(self, table, near, far, start, ray_l, ray_r, l_inside, leaves_at):
         """Whether each pair's face ``near`` goes behind ``far``'s surface (:class:`Faces`)
