@@ -40,7 +40,7 @@
 
 4. A pixel refined for its neighbours (step 2) is given the finest grid, but most such
    pixels turn out flat: before its grid it is traced with a *probe*, the
-   ``BETWEEN_PROBE`` x ``BETWEEN_PROBE`` grid, which settles it (its value is the
+   ``PROBE`` x ``PROBE`` grid, which settles it (its value is the
    probe's) where the probe's samples agree with one another (within the threshold) and
    their mean with its first pass's value (within ``SETTLE`` x the threshold): it is
    flat at the probe's resolution (towards the horizon, where the filtered board is a
@@ -59,7 +59,8 @@
    its probe's samples followed that path (``signature.one_path``): no detail of its
    neighbours' reaches into it, short of a quarter of a pixel.
    A pixel refined for its own samples whose grid is the finest is first probed with the
-   ``EDGE_PROBE`` x ``EDGE_PROBE`` grid and settled where its samples differ (the pixel
+   same grid, in the same job (the two were ``BETWEEN_PROBE`` and ``EDGE_PROBE``, two jobs,
+   until 2026-12-07), and settled where its samples differ (the pixel
    holds an edge) and yet their mean agrees with the first pass's value within
    ``SETTLE`` x the threshold: the first pass's filtered footprint already averaged what
    they differ by (a checker edge seen directly); a point-sampled edge (a silhouette, a
@@ -73,6 +74,15 @@
    of the scenes at 0.02, on none at 0.01 or 0.05), so those are not probed; of those
    given 12 x 12 it settled 0-58 % at 0.02 and 10-32 % at 0.01, where it saves the
    showcase 15 % of its time.
+   Then the refined pixels' grids are traced, as two jobs (:class:`Graded`: the grids
+   whose pixels fill whole packets, 4 x 4, 8 x 8 and 12 x 12, and the others), not one job
+   a grid: a job has a fixed cost (about 10 ms on the CPU, measured 2026-12-07: the ray
+   tree's kernels, a host sync at each bounce) whatever its size, and an ``--aa`` render
+   ran nine of them (the first pass, the corners, two probes, six grids), now five; its
+   image is the same, bit for bit. A chunk of them holds at most half the first pass's
+   camera rays (``GRADED_LANES``): in one chunk, the grids' deeper trees raised the peak
+   memory of a 512 x 384 render of the showcase from 324 to 530 MB; so capped, it is 305 MB,
+   and the render takes 8 % less time (whitted.ray: 10 %), whole processes, 2026-12-07.
 
 5. A checkerboard is averaged over each sample's *footprint* (its share of the pixel: the
    whole pixel for the first pass and the corners, 1/n of it for an n x n grid), from the
@@ -108,18 +118,22 @@ import drjit as dr
 import numpy as np
 
 from . import signature
-from .camera import corner_rays, pixel_means
-from .chunks import Job
+from .camera import corner_rays, graded_rays, pixel_means
+from .chunks import Job, fills_packets
 
 # (n, contrast): a refined pixel gets the n x n grid of the last entry whose contrast, in
 # multiples of the threshold, its five samples' difference exceeds
 GRIDS = ((2, 0.0), (3, 2.0), (4, 4.0), (6, 12.0), (8, 20.0), (12, 35.0))
 # The probes (step 4 above): the grid's side of a pixel refined for its neighbours, and of a
-# pixel whose own grid is the finest; and how close, in multiples of the threshold, a probe's
-# mean must be to the first pass's value to settle a pixel
-BETWEEN_PROBE = 4
-EDGE_PROBE = 4
+# pixel whose own grid is the finest (one job: one side); and how close, in multiples of the
+# threshold, a probe's mean must be to the first pass's value to settle a pixel
+PROBE = 4
 SETTLE = 0.25
+# A chunk of the refined pixels' grids (Graded) holds at most half the first pass's camera
+# rays (their trees are deeper than the image's average: whole processes then peak where they
+# did with a job a grid, measured 2026-12-07), and may hold this many (a small image's
+# refinement, one chunk)
+GRADED_LANES = 1 << 16
 BAND = 1024  # rows compared at a time (bounded host memory on huge images)
 # The rows a band's first pass traces above and below it: a pixel between two refined ones
 # reads its neighbours' decisions, and each of these reads its own neighbours' paths (step 0)
@@ -219,6 +233,65 @@ class Level(NamedTuple):
     n: int  # the grid's side (GRIDS)
 
 
+class Graded:
+    """The pixels of several levels (:class:`Level`), each with its own grid, traced as one
+    job (a job for ``chunks.Chunker``, as ``chunks.Job``): the levels' pixels in order, a
+    pixel's n x n samples consecutive, as each level's own job would trace them (the same
+    rays, the same packets: the levels' grids all fill whole packets, or none does,
+    ``chunks.fills_packets``). A job has a fixed cost (about 10 ms on the CPU: the ray
+    tree's kernels recorded, a host sync at each bounce), which the levels then share."""
+
+    def __init__(self, width, height, levels):
+        self.width, self.height = width, height  # the image
+        self.levels = levels
+        self.pixels = np.concatenate([level.pixels for level in levels])  # uint32, in order
+        self.sides = np.concatenate([np.full(len(level.pixels), level.n, np.uint32)
+                                     for level in levels])  # each pixel's grid's side
+        self.count = len(self.pixels)
+        coherent = {fills_packets(level.n * level.n) for level in levels}
+        if len(coherent) != 1:
+            raise ValueError("levels traced together must all fill whole packets, or none")
+        self.coherent = coherent.pop()
+        # each pixel's samples' end: its last lane + 1, counted from the job's first
+        self.ends = np.cumsum(self.sides.astype(np.int64) ** 2)
+
+    def _lane(self, pixel):
+        return int(self.ends[pixel - 1]) if pixel else 0
+
+    def samples(self, start, count):
+        return self._lane(start + count) - self._lane(start)
+
+    def fitting(self, start, lanes):
+        last = int(np.searchsorted(self.ends, self._lane(start) + lanes, side="right"))
+        return max(last - start, 1)
+
+    def packet_margins(self, start, count):
+        return 0, 0  # (each pixel whole packets, or its rays traced alone)
+
+    def rays(self, sensor, start, count, footprint=False):
+        return graded_rays(sensor, self.width, self.height,
+                           self.pixels[start:start + count], self.sides[start:start + count],
+                           footprint)
+
+    def means(self, start, count, samples):
+        """The box-filtered value ((count, 3) float32) of each of the pixels start .. start +
+        count - 1 from their ``samples`` ((lanes, 3) float32): their sum, in lane order, times
+        1 / n^2, as ``camera.pixel_means`` computes it."""
+        out = np.empty((count, 3), np.float32)
+        sides = self.sides[start:start + count].astype(np.int64)
+        firsts = np.flatnonzero(np.diff(sides, prepend=0))  # the runs of one grid
+        lane = 0
+        for first, end in zip(firsts, [*firsts[1:], count]):
+            spp = int(sides[first]) ** 2
+            run = samples[lane:lane + (end - first) * spp].reshape(end - first, spp, 3)
+            total = run[:, 0].copy()
+            for s in range(1, spp):
+                total += run[:, s]
+            out[first:end] = total * np.float32(1.0 / spp)
+            lane += (end - first) * spp
+        return out
+
+
 class Plan:
     """The anti-aliasing decisions of a primal render: its refinement ``levels``, in order,
     for the image of ``sensor`` (width x height, ``spp`` samples per pixel in the first
@@ -301,60 +374,58 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
     offset = first_row * width  # the first pixel of ``values``
     levels = []
 
-    def probe(mask, side, settles, by_path=None, regrid=False):
-        """Trace the pixels of ``mask`` with a side x side grid. Those for which
-        ``settles(agree, flat, asks)`` holds (by pixel: the probe's mean agrees with the
-        first pass's value; its samples agree with one another; the side of the grid their
-        contrast asks for, GRIDS), and those of ``by_path`` (bool by pixel of the band, or
-        None) whose probe's samples all followed its centre's path (signature.one_path),
-        take the probe's value and are done; with ``regrid``, the others whose samples
-        differ get the grid their contrast asks for."""
-        pixels = (np.flatnonzero(mask) + first).astype(np.uint32)
-        if not len(pixels):
-            return
-        estimate.admit(len(pixels), side * side)
-        signed = None if by_path is None else least_weight(threshold)
-        means, spread, paths = trace_probe(chunker, Job(width, height, side * side,
-                                                        pixels=pixels), signed)
-        agree = np.abs(means - values[pixels - offset]).max(axis=-1) <= SETTLE * threshold
+    # The probes (step 4), one job: the pixels refined for their neighbours, and those refined
+    # for their own samples whose grid is the finest
+    around = around[band].ravel()
+    probed = (np.flatnonzero((around & (grid >= 0)) | (~around & (grid == len(GRIDS) - 1)))
+              + first).astype(np.uint32)
+    if len(probed):
+        estimate.admit(len(probed), PROBE * PROBE)
+        means, spread, paths = trace_probe(
+            chunker, Job(width, height, PROBE * PROBE, pixels=probed),
+            None if smooth is None else least_weight(threshold))
+        neighbours = around[probed - first]  # (the others: an edge's)
+        agree = np.abs(means - values[probed - offset]).max(axis=-1) <= SETTLE * threshold
         flat = spread <= threshold
         asked = grid_of(spread, threshold)
-        done = settles(agree, flat, sides[asked])
+        # its neighbours': flat and agreeing, or asking for no finer a grid than the probe's; an edge:
+        # its samples differ, yet their mean agrees (the first pass's footprint averaged them)
+        done = np.where(neighbours, (agree & flat) | (~flat & (sides[asked] <= PROBE)),
+                        agree & ~flat)
         if paths is not None:
-            done |= by_path[pixels - first] & \
-                signature.one_path(signatures.ravel()[pixels - offset], paths)
-        if regrid:
-            grid[pixels[~done & ~flat] - first] = asked[~done & ~flat]
+            # (a pixel between two refined ones whose own samples followed one path, and its
+            # probe's too, holds no detail its neighbours saw: their feature misses it by a
+            # quarter of a pixel)
+            done |= neighbours & same[band].ravel()[probed - first] & \
+                signature.one_path(signatures.ravel()[probed - offset], paths)
+        regrid = neighbours & ~done & ~flat  # it saw the detail: the grid its contrast asks for
+        grid[probed[regrid] - first] = asked[regrid]
         if done.any():
-            values[pixels[done] - offset] = means[done]
-            levels.append(Level(pixels[done], side))
-            grid[pixels[done] - first] = -1
-
-    around = around[band].ravel()
-    # (a pixel between two refined ones whose own samples followed one path, and its probe's
-    # too, holds no detail its neighbours saw: their feature misses it by a quarter of a pixel)
-    probe(around & (grid >= 0), BETWEEN_PROBE,
-          lambda agree, flat, asks: (agree & flat) | (~flat & (asks <= BETWEEN_PROBE)),
-          None if smooth is None else same[band].ravel(), regrid=True)
-    probe(~around & (grid == len(GRIDS) - 1), EDGE_PROBE,
-          lambda agree, flat, asks: agree & ~flat)
-    for k, (n, _) in enumerate(GRIDS):
-        pixels = (np.flatnonzero(grid == k) + first).astype(np.uint32)
-        if len(pixels):
-            estimate.admit(len(pixels), n * n)
-            trace_level(chunker, Job(width, height, n * n, pixels=pixels), values, offset)
-            levels.append(Level(pixels, n))
-    return Plan(chunker.sensor, width, height, spp, threshold, levels)
+            values[probed[done] - offset] = means[done]
+            levels.append(Level(probed[done], PROBE))
+            grid[probed[done] - first] = -1
+    graded = [Level((np.flatnonzero(grid == k) + first).astype(np.uint32), n)
+              for k, (n, _) in enumerate(GRIDS)]
+    graded = [level for level in graded if len(level.pixels)]
+    for level in graded:
+        estimate.admit(len(level.pixels), level.n * level.n)
+    for coherent in (True, False):  # two jobs, not one a level (Graded)
+        together = [level for level in graded if fills_packets(level.n * level.n) == coherent]
+        if together:
+            trace_graded(chunker, Graded(width, height, together), values, offset,
+                         lanes=max(len(values) * spp // 2, GRADED_LANES))
+    return Plan(chunker.sensor, width, height, spp, threshold, levels + graded)
 
 
-def trace_level(chunker, job, values, offset=0):
-    """Trace ``job``'s pixels through ``chunker``, each one's box-filtered value written into
-    ``values`` ((H * W, 3), by pixel number less ``offset``)."""
+def trace_graded(chunker, job, values, offset=0, lanes=None):
+    """Trace the pixels of ``job`` (:class:`Graded`) through ``chunker``, at most ``lanes``
+    camera rays a chunk (None: as the chunker's budget allows), each one's box-filtered value
+    written into ``values`` ((H * W, 3), by pixel number less ``offset``)."""
     def visit(start, count, color):
-        means = pixel_means(color, count, job.spp)
-        values[job.pixels[start:start + count] - offset] = dr.ravel(means).numpy().reshape(-1, 3)
+        means = job.means(start, count, dr.ravel(color).numpy().reshape(-1, 3))
+        values[job.pixels[start:start + count] - offset] = means
 
-    chunker.run(job, visit)
+    chunker.run(job, visit, lanes=lanes)
 
 
 def trace_probe(chunker, job, signed=None):

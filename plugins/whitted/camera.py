@@ -19,6 +19,7 @@ Conventions, decided here once:
 
 import drjit as dr
 import mitsuba as mi
+import numpy as np
 
 GOLDEN = 0.6180339887498949
 CORNER_JITTER = 0.2  # pixels: how far a corner's sample may be from the corner, in x and y
@@ -31,10 +32,16 @@ def stratum_offset(s, spp):
     n = int(round(spp ** 0.5))
     if n * n == spp:
         row = s // n
-        return mi.Point2f((mi.Float(s - row * n) + 0.5) / n, (mi.Float(row) + 0.5) / n)
+        return grid_offset(s - row * n, row, n)
     x = (mi.Float(s) + 0.5) / spp
     y = dr.fma(mi.Float(s), GOLDEN, 0.5)
     return mi.Point2f(x, y - dr.floor(y))
+
+
+def grid_offset(column, row, n):
+    """Position in [0, 1)^2 of the stratum (column, row) (UInt32) of an n x n grid: its
+    centre (``n`` an int, or Float by lane)."""
+    return mi.Point2f((mi.Float(column) + 0.5) / n, (mi.Float(row) + 0.5) / n)
 
 
 def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None, footprint=False):
@@ -62,6 +69,28 @@ def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None, fo
     film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
                           (mi.Float(row) + offset.y) / height)
     return sample(sensor, film_pos, spp ** -0.5 if footprint else None)
+
+
+def graded_rays(sensor, width, height, pixels, sides, footprint=False):
+    """Camera rays of pixels each with its own grid, pixel-major: pixel ``pixels[i]`` (numpy
+    uint32) with the n x n grid of strata of n = ``sides[i]`` (numpy uint32), its rays those
+    of :func:`camera_rays` with spp = n^2 (``footprint``: 1 / n of a pixel)."""
+    spp = sides.astype(np.int64) ** 2
+    starts = np.cumsum(spp) - spp  # each pixel's first lane
+    lane_side = np.repeat(sides, spp)
+    sample_number = np.arange(int(spp.sum()), dtype=np.int64) - np.repeat(starts, spp)
+    # (on the host: Dr.Jit 1.5 on LLVM stops the process with SIGFPE at a UInt32 array
+    # divided by another, e.g. UInt32([5, 7]) // UInt32([2, 3]))
+    row, column = np.divmod(sample_number, lane_side)
+    offset = grid_offset(mi.UInt32(column.astype(np.uint32)), mi.UInt32(row.astype(np.uint32)),
+                         mi.Float(lane_side.astype(np.float32)))
+    pixel = mi.UInt32(np.repeat(pixels, spp))
+    row = pixel // width
+    film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
+                          (mi.Float(row) + offset.y) / height)
+    # (float64 to float32 as spp ** -0.5 is by camera_rays)
+    scale = mi.Float((lane_side.astype(np.float64) ** 2) ** -0.5) if footprint else None
+    return sample(sensor, film_pos, scale)
 
 
 def corner_rays(sensor, width, height, first, count, footprint=False):

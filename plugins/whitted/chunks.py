@@ -57,6 +57,12 @@ PROBE_RAYS = 1 << 20
 PACKET = 16
 
 
+def fills_packets(spp):
+    """Whether a pixel's ``spp`` lanes are whole packets (PACKET): a list of such pixels is
+    traced as coherent packets, each packet one pixel's, whatever else the list holds."""
+    return spp % PACKET == 0
+
+
 class Job:
     """Pixels to render with ``spp`` samples each: ``first`` .. ``first + count - 1`` of the
     image or, with ``pixels`` (a numpy uint32 array), those pixels in that order."""
@@ -72,7 +78,7 @@ class Job:
         # whether the camera rays are traced as coherent packets (Tracer.trace): a range's
         # neighbouring rays are, and a list's whose pixels are each whole packets (PACKET);
         # other lists' rays alone: their packets would depend on what else the list holds
-        self.coherent = pixels is None or spp % PACKET == 0
+        self.coherent = pixels is None or fills_packets(spp)
         self.total = width * height  # the pixels of the image's numbering
 
     def rays(self, sensor, start, count, footprint=False):
@@ -159,7 +165,8 @@ class Chunker:
     def tree_rays(self, ad):
         return max(int(self.budget // bytes_per_ray(ad, self.tracer.footprint)), MIN_CHUNK_RAYS)
 
-    def run(self, job, visit, ad=False, lazy=False, record=None, queries=None, signed=None):
+    def run(self, job, visit, ad=False, lazy=False, record=None, queries=None, signed=None,
+            lanes=None):
         """Trace ``job`` chunk by chunk; for each chunk call ``visit(start, count, color)``
         with the camera rays' colors (one lane per camera ray, pixel-major; ``signed``, not
         None: ``visit(start, count, color, signature)``, with their path signatures, see
@@ -168,12 +175,15 @@ class Chunker:
         ``lazy``: the colors are handed over unevaluated (``Tracer.trace``); ``record``:
         optional callable(start, count) giving the ``first_hit`` hook of the chunk's trace;
         ``queries``: optional callable(start, count, terms) giving its ``queries`` (or None;
-        ``Tracer.trace``, ``terms`` the chunk's scene terms); start counts the job's pixels."""
+        ``Tracer.trace``, ``terms`` the chunk's scene terms); ``lanes``: at most this many
+        camera rays a chunk (None: MAX_CHUNK_LANES); start counts the job's pixels."""
         max_rays = self.tree_rays(ad)
+        max_lanes = MAX_CHUNK_LANES if lanes is None else min(lanes, MAX_CHUNK_LANES)
         self.pixels_total += job.count
         start = 0
         while start < job.count:
-            count = min(self._chunk_pixels(job, start, max_rays), job.count - start)
+            count = min(self._chunk_pixels(job, start, max_rays, max_lanes),
+                        job.count - start)
             trace, count = self._trace_within(job, start, count, ad, max_rays, lazy, record,
                                               queries, signed)
             rays = sum(trace.rays_per_generation)
@@ -188,9 +198,9 @@ class Chunker:
             if self.progress is not None:
                 self.progress(self.pixels_done, self.pixels_total, self.chunks_done)
 
-    def _chunk_pixels(self, job, start, max_rays):
+    def _chunk_pixels(self, job, start, max_rays, max_lanes):
         # 1.5: room for a chunk whose tree is larger than any before
-        lanes = min(int(max_rays / (self.ratio * 1.5)), MAX_CHUNK_LANES)
+        lanes = min(int(max_rays / (self.ratio * 1.5)), max_lanes)
         pixels = job.fitting(start, lanes)
         if self.max_pixels is not None and self.max_pixels < pixels:
             return self.max_pixels  # (as asked: its chunks take their margins, _trace)

@@ -181,7 +181,7 @@ def test_a_probe_that_sees_faint_detail_between_two_refined_pixels_gives_its_val
     image = loaded.integrator.render_array(loaded.scene)
     middle, gap = width // 2, height // 2
     gap_pixels = gap * width + np.array([middle - 1, middle])
-    n = antialias.BETWEEN_PROBE
+    n = antialias.PROBE
     probed = {int(pixel) for level in loaded.integrator.plan.levels
               if level.n == n for pixel in level.pixels}
     assert set(gap_pixels.tolist()) <= probed
@@ -321,3 +321,84 @@ def test_bands_and_chunks_of_a_scene_of_mirrors_glass_and_a_board_are_the_whole_
     assert np.array_equal(np.concatenate(bands), whole)
     integrator.chunk_pixels = 37
     assert np.array_equal(integrator.render_array(loaded.scene), whole)
+
+
+# Levels of every grid (antialias.GRIDS), a few pixels each, spread over a 29 x 17 image
+GRADED = ((2, [3, 40, 41]), (3, [100, 7]), (6, [250]), (4, [0, 492]), (8, [77]), (12, [300, 301]))
+
+
+def graded_levels(coherent):
+    from raymitsuba.plugins.whitted.antialias import Level
+    from raymitsuba.plugins.whitted.chunks import fills_packets
+
+    return [Level(np.array(pixels, np.uint32), n) for n, pixels in GRADED
+            if fills_packets(n * n) == coherent]
+
+
+def test_graded_rays_are_each_grids_camera_rays_bit_for_bit(mi):
+    from raymitsuba.plugins.whitted.camera import camera_rays, graded_rays
+    import raymitsuba
+
+    loaded = raymitsuba.load("scenes/whitted.ray", width=29, height=17)
+    sensor = loaded.scene.sensors()[0]
+    pixels = np.array([p for _, level in GRADED for p in level], np.uint32)
+    sides = np.array([n for n, level in GRADED for _ in level], np.uint32)
+    for footprint in (False, True):
+        rays = graded_rays(sensor, 29, 17, pixels, sides, footprint)
+        want = [camera_rays(sensor, 29, 17, int(n) ** 2, pixels=mi.UInt32([p]),
+                            footprint=footprint) for p, n in zip(pixels, sides)]
+        fields = ["o", "d"] + (["o_x", "o_y", "d_x", "d_y"] if footprint else [])
+        for field in fields:
+            got = np.array(getattr(rays, field))
+            assert np.array_equal(got, np.concatenate(
+                [np.array(getattr(ray, field)) for ray in want], axis=-1)), field
+
+
+def test_a_graded_job_counts_each_pixels_own_samples():
+    from raymitsuba.backend import mitsuba
+
+    mitsuba()
+    from raymitsuba.plugins.whitted.antialias import Graded
+
+    job = Graded(29, 17, graded_levels(coherent=False))  # 2 x 2 (3 pixels), 3 x 3 (2), 6 x 6
+    assert job.count == 6 and not job.coherent
+    assert job.samples(0, 6) == 3 * 4 + 2 * 9 + 36 and job.samples(2, 2) == 4 + 9
+    assert job.fitting(0, 12) == 3 and job.fitting(0, 20) == 3  # whole pixels only ...
+    assert job.fitting(3, 5) == 1  # ... yet at least one, larger than the lanes
+    assert job.packet_margins(0, 6) == (0, 0)
+    assert Graded(29, 17, graded_levels(coherent=True)).coherent
+
+
+def test_levels_that_would_trace_in_packets_and_levels_that_would_not_are_refused_together():
+    from raymitsuba.backend import mitsuba
+
+    mitsuba()
+    from raymitsuba.plugins.whitted.antialias import Graded, Level
+
+    with pytest.raises(ValueError, match="whole packets"):
+        Graded(29, 17, [Level(np.uint32([1]), 4), Level(np.uint32([2]), 3)])
+
+
+@pytest.mark.parametrize("coherent", [True, False])
+def test_a_graded_job_gives_each_level_its_own_jobs_values_bit_for_bit(mi, coherent):
+    """Traced together (and cut into chunks of 2 pixels, across the levels), each level's
+    pixels get the values their own job (chunks.Job) gives them."""
+    import raymitsuba
+    from raymitsuba.plugins.whitted.antialias import Graded, trace_graded
+    from raymitsuba.plugins.whitted.camera import pixel_means
+    from raymitsuba.plugins.whitted.chunks import Chunker, Job
+
+    loaded = raymitsuba.load("scenes/benchmark_glass.ray", width=29, height=17)
+    integrator, scene = loaded.integrator, loaded.scene
+    chunker = Chunker(integrator.tracer, scene, scene.sensors()[0], integrator.memory_budget,
+                      max_pixels=2)
+    levels = graded_levels(coherent)
+    values = np.zeros((29 * 17, 3), np.float32)
+    trace_graded(chunker, Graded(29, 17, levels), values)
+    for level in levels:
+        spp = level.n * level.n
+        want = []
+        chunker.run(Job(29, 17, spp, pixels=level.pixels),
+                    lambda start, count, color: want.append(
+                        np.array(pixel_means(color, count, spp)).T.reshape(-1, 3)))
+        assert np.array_equal(values[level.pixels], np.concatenate(want)), level.n

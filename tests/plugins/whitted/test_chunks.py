@@ -132,6 +132,19 @@ def test_renders_are_deterministic(mi):
     assert np.array_equal(chunked(loaded, 50), first)
 
 
+def test_a_chunk_holds_at_most_the_camera_rays_asked_for(mi):
+    import raymitsuba
+    from raymitsuba.plugins.whitted.chunks import Chunker, Job
+
+    loaded = raymitsuba.load(GLASS, width=24, height=16)
+    integrator, scene = loaded.integrator, loaded.scene
+    chunker = Chunker(integrator.tracer, scene, scene.sensors()[0], integrator.memory_budget)
+    sizes = []
+    chunker.run(Job(24, 16, 16, pixels=np.arange(50, 70, dtype=np.uint32)),
+                lambda start, count, color: sizes.append(count), lanes=100)
+    assert sizes == [6, 6, 6, 2]  # 16 lanes a pixel: 6 fit in 100
+
+
 def test_the_probe_estimates_the_rays_per_camera_ray(mi):
     import raymitsuba
 
