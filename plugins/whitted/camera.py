@@ -21,6 +21,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
+from .arrays import jit_array
+
 GOLDEN = 0.6180339887498949
 CORNER_JITTER = 0.2  # pixels: how far a corner's sample may be from the corner, in x and y
 
@@ -82,14 +84,15 @@ def graded_rays(sensor, width, height, pixels, sides, footprint=False):
     # (on the host: Dr.Jit 1.5 on LLVM stops the process with SIGFPE at a UInt32 array
     # divided by another, e.g. UInt32([5, 7]) // UInt32([2, 3]))
     row, column = np.divmod(sample_number, lane_side)
-    offset = grid_offset(mi.UInt32(column.astype(np.uint32)), mi.UInt32(row.astype(np.uint32)),
-                         mi.Float(lane_side.astype(np.float32)))
-    pixel = mi.UInt32(np.repeat(pixels, spp))
+    offset = grid_offset(jit_array(mi.UInt32, column), jit_array(mi.UInt32, row),
+                         jit_array(mi.Float, lane_side))
+    pixel = jit_array(mi.UInt32, np.repeat(pixels, spp))
     row = pixel // width
     film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
                           (mi.Float(row) + offset.y) / height)
     # (float64 to float32 as spp ** -0.5 is by camera_rays)
-    scale = mi.Float((lane_side.astype(np.float64) ** 2) ** -0.5) if footprint else None
+    scale = jit_array(mi.Float, (lane_side.astype(np.float64) ** 2) ** -0.5) \
+        if footprint else None
     return sample(sensor, film_pos, scale)
 
 
