@@ -131,8 +131,8 @@ PROBE = 4
 SETTLE = 0.25
 # A chunk of the refined pixels' grids (Graded) holds at most half the first pass's camera
 # rays (their trees are deeper than the image's average: whole processes then peak where they
-# did with a job a grid, measured 2026-12-07), and may hold this many (a small image's
-# refinement, one chunk)
+# did with a job a grid, measured 2026-12-07), or this many where that is more (a small
+# image's refinement in one chunk)
 GRADED_LANES = 1 << 16
 BAND = 1024  # rows compared at a time (bounded host memory on huge images)
 # The rows a band's first pass traces above and below it: a pixel between two refined ones
@@ -243,7 +243,6 @@ class Graded:
 
     def __init__(self, width, height, levels):
         self.width, self.height = width, height  # the image
-        self.levels = levels
         self.pixels = np.concatenate([level.pixels for level in levels])  # uint32, in order
         self.sides = np.concatenate([np.full(len(level.pixels), level.n, np.uint32)
                                      for level in levels])  # each pixel's grid's side

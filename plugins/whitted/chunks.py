@@ -2,7 +2,7 @@
 
 A *job* is a set of pixels (a contiguous range, or an explicit list) and a number of
 samples per pixel. Its interface to the :class:`Chunker` (:class:`Job`'s; anti-aliasing's
-``CornerJob`` has it too): ``count`` (pixels), ``rays(sensor, start, count, footprint)``,
+``CornerJob`` and ``Graded``, a list of pixels each with its own grid, have it too): ``count`` (pixels), ``rays(sensor, start, count, footprint)``,
 ``samples(start, count)`` (camera rays of pixels start .. start + count - 1),
 ``fitting(start, lanes)`` (how many pixels from start fit in that many camera rays, at least
 one), ``coherent`` and ``packet_margins(start, count)`` (its rays traced in packets, see
