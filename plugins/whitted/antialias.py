@@ -59,8 +59,8 @@
    its probe's samples followed that path (``signature.one_path``): no detail of its
    neighbours' reaches into it, short of a quarter of a pixel.
    A pixel refined for its own samples whose grid is the finest is first probed with the
-   same grid, in the same job (the two were ``BETWEEN_PROBE`` and ``EDGE_PROBE``, two jobs,
-   until 2026-12-07), and settled where its samples differ (the pixel
+   same ``PROBE`` x ``PROBE`` grid, in the same job (the two were ``BETWEEN_PROBE`` and
+   ``EDGE_PROBE``, two jobs, until 2026-12-07), and settled where its samples differ (the pixel
    holds an edge) and yet their mean agrees with the first pass's value within
    ``SETTLE`` x the threshold: the first pass's filtered footprint already averaged what
    they differ by (a checker edge seen directly); a point-sampled edge (a silhouette, a
@@ -80,9 +80,10 @@
    tree's kernels, a host sync at each bounce) whatever its size, and an ``--aa`` render
    ran nine of them (the first pass, the corners, two probes, six grids), now five; its
    image is the same, bit for bit. A chunk of them holds at most half the first pass's
-   camera rays (``GRADED_LANES``): in one chunk, the grids' deeper trees raised the peak
-   memory of a 512 x 384 render of the showcase from 324 to 530 MB; so capped, it is 305 MB,
-   and the render takes 8 % less time (whitted.ray: 10 %), whole processes, 2026-12-07.
+   camera rays, but never fewer than ``GRADED_LANES``: in one chunk, the grids' deeper
+   trees raised the peak memory of a 512 x 384 render of the showcase from 324 to 530 MB;
+   so capped, it is 305 MB, and the render takes 9 % less time (whitted.ray: 11 %; the
+   repository's scenes 8-12 %), whole processes, 2026-12-07.
 
 5. A checkerboard is averaged over each sample's *footprint* (its share of the pixel: the
    whole pixel for the first pass and the corners, 1/n of it for an n x n grid), from the
@@ -130,8 +131,9 @@ GRIDS = ((2, 0.0), (3, 2.0), (4, 4.0), (6, 12.0), (8, 20.0), (12, 35.0))
 PROBE = 4
 SETTLE = 0.25
 # A chunk of the refined pixels' grids (Graded) holds at most half the first pass's camera
-# rays (their trees are deeper than the image's average: whole processes then peak where they
-# did with a job a grid, measured 2026-12-07), or this many where that is more (a small
+# rays (their trees are deeper than the image's average: whole processes then peak within 3 %
+# of where they did with a job a grid, most lower, measured 2026-12-07), or this many where
+# that is more (a small
 # image's refinement in one chunk)
 GRADED_LANES = 1 << 16
 BAND = 1024  # rows compared at a time (bounded host memory on huge images)
@@ -238,11 +240,16 @@ class Graded:
     job (a job for ``chunks.Chunker``, as ``chunks.Job``): the levels' pixels in order, a
     pixel's n x n samples consecutive, as each level's own job would trace them (the same
     rays, the same packets: the levels' grids all fill whole packets, or none does,
-    ``chunks.fills_packets``). A job has a fixed cost (about 10 ms on the CPU: the ray
-    tree's kernels recorded, a host sync at each bounce), which the levels then share."""
+    ``chunks.fills_packets``). It has the Chunker's part of a job's interface only (not
+    ``spp`` nor the lane numbering an adjoint pass reads: the adjoint jobs are one
+    ``chunks.Job`` a level, ``Plan.adjoint_jobs``). A job has a fixed cost (about 10 ms on
+    the CPU: the ray tree's kernels recorded, a host sync at each bounce), which the levels
+    then share."""
 
     def __init__(self, width, height, levels):
         self.width, self.height = width, height  # the image
+        if not levels:
+            raise ValueError("a graded job needs a level")
         self.pixels = np.concatenate([level.pixels for level in levels])  # uint32, in order
         self.sides = np.concatenate([np.full(len(level.pixels), level.n, np.uint32)
                                      for level in levels])  # each pixel's grid's side
@@ -387,8 +394,9 @@ def refine(image, spp, threshold, chunker, estimate, height=None, first_row=0, r
         agree = np.abs(means - values[probed - offset]).max(axis=-1) <= SETTLE * threshold
         flat = spread <= threshold
         asked = grid_of(spread, threshold)
-        # its neighbours': flat and agreeing, or asking for no finer a grid than the probe's; an edge:
-        # its samples differ, yet their mean agrees (the first pass's footprint averaged them)
+        # its neighbours': flat and agreeing, or asking for no finer a grid than the probe's;
+        # an edge: its samples differ, yet their mean agrees (the first pass's footprint
+        # averaged them)
         done = np.where(neighbours, (agree & flat) | (~flat & (sides[asked] <= PROBE)),
                         agree & ~flat)
         if paths is not None:

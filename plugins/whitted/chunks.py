@@ -1,8 +1,9 @@
 """Rendering in chunks of bounded size: which camera rays are traced together.
 
 A *job* is a set of pixels (a contiguous range, or an explicit list) and a number of
-samples per pixel. Its interface to the :class:`Chunker` (:class:`Job`'s; anti-aliasing's
-``CornerJob`` and ``Graded``, a list of pixels each with its own grid, have it too): ``count`` (pixels), ``rays(sensor, start, count, footprint)``,
+samples per pixel (anti-aliasing's ``Graded``: each pixel its own). Its interface to the
+:class:`Chunker` (:class:`Job`'s; anti-aliasing's ``CornerJob`` and ``Graded`` have it
+too): ``count`` (pixels), ``rays(sensor, start, count, footprint)``,
 ``samples(start, count)`` (camera rays of pixels start .. start + count - 1),
 ``fitting(start, lanes)`` (how many pixels from start fit in that many camera rays, at least
 one), ``coherent`` and ``packet_margins(start, count)`` (its rays traced in packets, see
@@ -17,11 +18,12 @@ generation's graph for the adjoint pass; FOOTPRINT_FACTOR times that for anti-al
 rays, which carry their footprints: ``guards.bytes_per_ray``): the tracer raises
 ``TreeTooLarge`` before a generation would take the tree past it, and the chunk is then
 traced again in halves. A chunk also holds at most ``MAX_CHUNK_LANES`` camera rays (see
-there). How many pixels a chunk holds follows the largest number of rays
-per camera ray seen so far (at first twice the probe's average: the tree's size varies
-over the image, mirrors and glass against sky), so that a chunk fits at the first
-attempt (a failed attempt is work thrown away). Everything is decided from ray counts, so
-the split, like the image, is the same on every run.
+there), or fewer where the caller asks (``Chunker.run``'s ``lanes``). How many pixels a
+chunk holds follows the largest number of rays per camera ray seen so far (at first twice
+the probe's average: the tree's size varies over the image, mirrors and glass against sky),
+so that a chunk fits at the first attempt (a failed attempt is work thrown away).
+Everything is decided from ray counts, so the split, like the image, is the same on every
+run.
 
 **Time.** Before a render, :func:`probe` traces a spread-out sample of the image's
 pixels (at most ``PROBE_PIXELS``, tree at most ``PROBE_RAYS`` rays, extrapolated
@@ -176,7 +178,8 @@ class Chunker:
         optional callable(start, count) giving the ``first_hit`` hook of the chunk's trace;
         ``queries``: optional callable(start, count, terms) giving its ``queries`` (or None;
         ``Tracer.trace``, ``terms`` the chunk's scene terms); ``lanes``: at most this many
-        camera rays a chunk (None: MAX_CHUNK_LANES); start counts the job's pixels."""
+        camera rays a chunk, or one pixel's (None: MAX_CHUNK_LANES); start counts the job's
+        pixels."""
         max_rays = self.tree_rays(ad)
         max_lanes = MAX_CHUNK_LANES if lanes is None else min(lanes, MAX_CHUNK_LANES)
         self.pixels_total += job.count

@@ -380,9 +380,11 @@ def test_levels_that_would_trace_in_packets_and_levels_that_would_not_are_refuse
 
 
 @pytest.mark.parametrize("coherent", [True, False])
-def test_a_graded_job_gives_each_level_its_own_jobs_values_bit_for_bit(mi, coherent):
-    """Traced together (and cut into chunks of 2 pixels, across the levels), each level's
-    pixels get the values their own job (chunks.Job) gives them."""
+@pytest.mark.parametrize("cut", [dict(max_pixels=2), dict(lanes=50)])
+def test_a_graded_job_gives_each_level_its_own_jobs_values_bit_for_bit(mi, coherent, cut):
+    """Traced together (and cut into chunks, across the levels: of 2 pixels, or of at most
+    50 camera rays, refine's cap), each level's pixels get the values their own job
+    (chunks.Job) gives them."""
     import raymitsuba
     from raymitsuba.plugins.whitted.antialias import Graded, trace_graded
     from raymitsuba.plugins.whitted.camera import pixel_means
@@ -391,10 +393,11 @@ def test_a_graded_job_gives_each_level_its_own_jobs_values_bit_for_bit(mi, coher
     loaded = raymitsuba.load("scenes/benchmark_glass.ray", width=29, height=17)
     integrator, scene = loaded.integrator, loaded.scene
     chunker = Chunker(integrator.tracer, scene, scene.sensors()[0], integrator.memory_budget,
-                      max_pixels=2)
+                      max_pixels=cut.get("max_pixels"))
     levels = graded_levels(coherent)
-    values = np.zeros((29 * 17, 3), np.float32)
-    trace_graded(chunker, Graded(29, 17, levels), values)
+    values = np.full((29 * 17, 3), np.nan, np.float32)  # (a pixel not written stays NaN)
+    trace_graded(chunker, Graded(29, 17, levels), values, lanes=cut.get("lanes"))
+    chunks = chunker.chunks_done
     for level in levels:
         spp = level.n * level.n
         want = []
@@ -402,3 +405,4 @@ def test_a_graded_job_gives_each_level_its_own_jobs_values_bit_for_bit(mi, coher
                     lambda start, count, color: want.append(
                         np.array(pixel_means(color, count, spp)).T.reshape(-1, 3)))
         assert np.array_equal(values[level.pixels], np.concatenate(want)), level.n
+    assert chunks >= 2  # (it was cut)
