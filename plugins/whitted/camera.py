@@ -67,10 +67,16 @@ def camera_rays(sensor, width, height, spp, first=0, count=None, pixels=None, fo
         pixel = local + dr.opaque(mi.UInt32, first)
     else:
         pixel = local
+    return sample(sensor, film_position(pixel, offset, width, height),
+                  spp ** -0.5 if footprint else None)
+
+
+def film_position(pixel, offset, width, height):
+    """The film position (``mi.Point2f``, [0, 1]^2) of the point ``offset`` ([0, 1)^2 of a
+    pixel, x right and y down) of pixel number ``pixel`` (UInt32) of a width x height image."""
     row = pixel // width
-    film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
-                          (mi.Float(row) + offset.y) / height)
-    return sample(sensor, film_pos, spp ** -0.5 if footprint else None)
+    return mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
+                      (mi.Float(row) + offset.y) / height)
 
 
 def graded_rays(sensor, width, height, pixels, sides, footprint=False):
@@ -87,13 +93,10 @@ def graded_rays(sensor, width, height, pixels, sides, footprint=False):
     offset = grid_offset(jit_array(mi.UInt32, column), jit_array(mi.UInt32, row),
                          jit_array(mi.Float, lane_side))
     pixel = jit_array(mi.UInt32, np.repeat(pixels, spp))
-    row = pixel // width
-    film_pos = mi.Point2f((mi.Float(pixel - row * width) + offset.x) / width,
-                          (mi.Float(row) + offset.y) / height)
     # (float64 to float32 as spp ** -0.5 is by camera_rays)
     scale = jit_array(mi.Float, (lane_side.astype(np.float64) ** 2) ** -0.5) \
         if footprint else None
-    return sample(sensor, film_pos, scale)
+    return sample(sensor, film_position(pixel, offset, width, height), scale)
 
 
 def corner_rays(sensor, width, height, first, count, footprint=False):
