@@ -20,8 +20,9 @@ lattice, for these discontinuities:
   (``chain.py``), and **total internal reflection** switching on or off along it
   (``tir.py``): the path that follows, from the surface seen, the refracted ray where kt >
   0 (the reflected one under total internal reflection), else the reflected ray where kr >
-  0, up to CHAIN_DEPTH bounces (so eta's derivative sees the checker lines seen through
-  glass, and a mirror's reflection of an edge moves with the geometry and the camera).
+  0, as many bounces as the tree traces, at most CHAIN_DEPTH (``chain.chain_depth``): so
+  eta's derivative sees the checker lines seen through glass, and a mirror's reflection of
+  an edge moves with the geometry and the camera.
 
 **The modules.** One per kind of edge, as listed above (``visibility.py``, ``shadows.py``,
 ``spot.py``, ``checker.py``, ``chain.py``, ``tir.py``; the terminator has none), the rim
@@ -64,7 +65,7 @@ half a spacing beyond its border all round (:func:`ring_points`, traced with the
 :meth:`Boundary.trace_ring`), paired with the border's; a crossing outside the image adds
 nothing (the eye's per-pixel error at k = 4 on benchmarks/edges_bench.py's scene 14.1 % ->
 10.4 %). The lattice's arrays hold the ring too: entry (Y + 1, X + 1) is lattice point (Y,
-X). These keys take memory (BYTES_PER_SAMPLE per sample): a lattice whose keys exceed the
+X). These keys take memory (``samples.bytes_per_sample``): a lattice whose keys exceed the
 memory budget is refused (BudgetError) before anything is traced.
 
 **Pairs.** Two lattice neighbours (in a row or a column) whose keys differ have an edge
@@ -144,21 +145,21 @@ from raymitsuba.options import GIB
 
 from ..chunks import MAX_CHUNK_LANES
 from ..guards import BudgetError
-from .chain import CHAIN_DEPTH, Chain
+from .chain import CHAIN_DEPTH, Chain, chain_depth
 from .checker import Checker
 from .lattice import (CHAIN_CHECKER, CHAIN_SHADOW, CHAIN_TIR, CHAIN_VISIBILITY, CHECKER,
                       KINDS, SHADOW, VISIBILITY, lattice_side)
 from .pairs import Pairs, light_moves, moving_kinds
 from .rim import Rim
-from .samples import BYTES_PER_LIGHT, BYTES_PER_SAMPLE, Samples
+from .samples import Samples, bytes_per_sample
 from .shadows import Shadows
 from .terms import Terms
 from .tir import Tir
 from .visibility import Visibility
 
 # (what the integrator, the benchmarks and the docs name as ``boundary.X``)
-__all__ = ["Boundary", "moving_kinds", "lattice_side", "CHAIN_DEPTH", "KINDS", "VISIBILITY",
-           "SHADOW", "CHECKER", "CHAIN_VISIBILITY", "CHAIN_CHECKER", "CHAIN_TIR",
+__all__ = ["Boundary", "moving_kinds", "lattice_side", "CHAIN_DEPTH", "chain_depth", "KINDS",
+           "VISIBILITY", "SHADOW", "CHECKER", "CHAIN_VISIBILITY", "CHAIN_CHECKER", "CHAIN_TIR",
            "CHAIN_SHADOW"]
 
 
@@ -192,7 +193,8 @@ class Boundary(Samples, Pairs, Terms, Visibility, Shadows, Checker, Chain, Tir, 
             ids = self.terms.geometry.id_by_name
             self.shape_moves[[ids[name] for name in ad.moving_shapes()]] = True
         self.light_moves = np.array([light_moves(light) for light in self.lights], bool)
-        per_sample = BYTES_PER_SAMPLE + BYTES_PER_LIGHT * len(self.lights)
+        self.chain_depth = chain_depth(tracer.max_depth)  # the chain's bounces followed
+        per_sample = bytes_per_sample(self.chain_depth, len(self.lights))
         need = width * height * spp * per_sample
         # the specular chain's keys are traced in blocks of at most this many samples (their
         # Dr.Jit arrays and the host's copy: within the budget, and within a chunk's size)

@@ -1,6 +1,7 @@
 """The specular chain (the package docstring): the path that follows, from the surface
 seen, the refracted ray where kt > 0 (the reflected one under total internal reflection),
-else the reflected ray where kr > 0, up to CHAIN_DEPTH bounces. Its next ray
+else the reflected ray where kr > 0, as deep as the tree goes (the render's ``max_depth``
+bounces), at most CHAIN_DEPTH (:func:`chain_depth`). Its next ray
 (:meth:`Chain.chain_step`), its keys per bounce (:meth:`Chain.chain_keys`), how far the
 chains reach, and g of a pair whose edge is seen along it (:meth:`Chain.chain_crossing`):
 each ray's chain replayed with derivatives to the bounce, then the visibility, checker or
@@ -17,7 +18,21 @@ from .lattice import (CHAIN_CHECKER, CHAIN_SHADOW, CHAIN_TIR, CHAIN_VISIBILITY, 
                       _host_keys, picked)
 from .terms import _evaluated, stacked
 
-CHAIN_DEPTH = 4  # bounces of the specular chain followed past the first hit
+# The most bounces of the specular chain followed past the first hit, whatever the tree's depth:
+# each takes 33 bytes a sample and 9 a light (samples.py), and a chain between two mirrors
+# goes on to the last bounce
+CHAIN_DEPTH = 8
+
+
+def chain_depth(max_depth):
+    """The bounces of the specular chain followed past the first hit for a tree of
+    ``max_depth`` bounces: every bounce the tree traces (bounce d of the chain is the tree's
+    generation d + 1), at most CHAIN_DEPTH. An edge seen past them has no term. Four bounces
+    were followed until 2026-12-07, whatever the depth: the horizon seen through a glass ball
+    that is seen through a glass cone by total internal reflection (random scene 22, five
+    bounces) had none, and its scale's derivative was off by 46 % of the finite difference's
+    sum at k = 32 (11 % with five)."""
+    return min(max_depth, CHAIN_DEPTH)
 
 
 def _merge(mask, si, other):
@@ -48,7 +63,7 @@ class Chain:
                                                  "occluder")}
         if normals:
             out["chain_normal"] = []
-        for _ in range(CHAIN_DEPTH):
+        for _ in range(self.chain_depth):
             if not dr.any(alive):  # (the chain's keys past its end: as the lattice starts)
                 break
             si_k = self.tracer.intersect(scene, table, ray, coherent=False)
@@ -90,7 +105,7 @@ class Chain:
         """How many bounces of the specular chain some chain reaches: those before the first
         that none does (0: no mirror, no glass)."""
         reached = [not np.all(shape == STOP) for shape in self.chain_shape]
-        return (reached + [False]).index(False)  # (every bounce reached: CHAIN_DEPTH)
+        return (reached + [False]).index(False)  # (every bounce reached: chain_depth)
 
     def chain_crossing(self, table, terms, ray, si, ends, kind, depth, g, light, line,
                        choices):

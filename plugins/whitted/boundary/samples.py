@@ -9,15 +9,24 @@ import numpy as np
 
 from ..arrays import jit_array
 from ..lift import lifted_point
-from .chain import CHAIN_DEPTH
 from .lattice import DEFAULT, NO_HIT, _host, _host_keys, lattice_index, ring_points
 from .spot import has_cone, spot_cosine
 
-# bytes of one sample's keys (shape, face, distance, normal, checker cell, the chain's first
-# ray, whether it goes on and is a total internal reflection and, per bounce of the chain,
-# shape, face, distance, normal, cell, TIR flag) and per light (lit, blocker)
-BYTES_PER_SAMPLE = 4 + 4 + 4 + 12 + 8 + 24 + 2 + CHAIN_DEPTH * (4 + 4 + 4 + 12 + 8 + 1)
-BYTES_PER_LIGHT = (1 + 8) * (1 + CHAIN_DEPTH)  # lit and blocker, first hit and chain
+# bytes of one sample's keys: its first hit's (shape, face, distance, normal, checker cell, the
+# chain's first ray, whether it goes on and is a total internal reflection) and those of each
+# bounce of the chain (shape, face, distance, normal, cell, TIR flag); per light, at the first
+# hit and each bounce: lit, blocker
+BYTES_FIRST_HIT = 4 + 4 + 4 + 12 + 8 + 24 + 2
+BYTES_PER_BOUNCE = 4 + 4 + 4 + 12 + 8 + 1
+BYTES_PER_LIGHT_HIT = 1 + 8
+
+
+def bytes_per_sample(bounces, lights):
+    """The bytes of one lattice sample's keys with ``bounces`` bounces of the chain followed
+    and ``lights`` lights: what the memory budget admits a lattice by (the arrays of a bounce
+    no chain reaches are never made: an upper bound)."""
+    return BYTES_FIRST_HIT + bounces * BYTES_PER_BOUNCE \
+        + lights * BYTES_PER_LIGHT_HIT * (1 + bounces)
 
 
 def _recorded_values(keys, chain):

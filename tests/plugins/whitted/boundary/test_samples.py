@@ -16,9 +16,11 @@ def test_keys_in_chunks_and_blocks_of_rows_give_the_derivative_of_one_block(mi):
     block reaches no bounce) are made with the second block, filled in for the first. The
     derivative is the one-block lattice's, to the float32 order of the adjoint pass's sums
     over its chunks."""
-    from raymitsuba.plugins.whitted.boundary import samples
+    from raymitsuba.options import RenderOptions
+    from raymitsuba.plugins.whitted.boundary import chain_depth, samples
 
-    per_sample = samples.BYTES_PER_SAMPLE + samples.BYTES_PER_LIGHT  # (one point light)
+    # (one point light, the default depth)
+    per_sample = samples.bytes_per_sample(chain_depth(RenderOptions().max_depth), 1)
     budget = W * H * 16 * per_sample
     w = weights()
     one = reverse(mi, MIRRORED_SHADOW, "camera.eye", w, 16)
