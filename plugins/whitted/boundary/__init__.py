@@ -54,9 +54,10 @@ them (a checker line and a shadow edge); checker lines, however many, are a cros
 **The lattice.** The samples of all pixels form one uniform grid over the image, spacing
 1/k pixel (sample (sx, sy) of pixel (px, py) is lattice point X = px k + sx, Y = py k + sy).
 Each sample's *key* is recorded as the adjoint pass traces it, from its own hits and shadow
-rays, in the same kernel (:meth:`Boundary.recorder`: the keys cost no trace of their own):
-the shape and face hit (and the face's normal), the checker cell, for each light whether it
-is lit and what blocks it; the same of each bounce of the specular chain (with its total
+rays, in the same kernel (:meth:`Boundary.recorder`: the keys cost no trace of their own,
+but for the walk through glass to the stopper): the shape and face hit (and the face's
+normal), the checker cell, for each light whether it is lit, what blocks it first and where
+its light stops (``shadows.py``); the same of each bounce of the specular chain (with its total
 internal reflection flag) is traced from there (:meth:`Boundary.trace_keys`); the sample's
 color f is kept as the adjoint pass leaves it (:meth:`Boundary.collect`). The samples
 nearest the border lie half a lattice spacing inside it: an edge between them and the border
@@ -209,9 +210,9 @@ class Boundary(Samples, Pairs, Terms, Visibility, Shadows, Checker, Chain, Tir, 
         # with an array per bounce traced (none past the last bounce any chain reaches): the
         # shape and face hit, its distance, the face's normal (x, y, z planes: index d * 3 +
         # c), the checker cell there and whether the bounce was a total internal reflection;
-        # lit and what blocks it, per bounce and light (index d * lights + j)
+        # lit, what blocks it and where it stops, per bounce and light (index d * lights + j)
         self.shape = self.prim = self.t = self.cell = None
-        self.normal, self.lit, self.occluder = [], [], []  # (normal: its x, y, z planes)
+        self.normal, self.lit, self.occluder, self.stopper = [], [], [], []  # (normal: x, y, z)
         # the samples' colors as the adjoint pass left them: (first lane, Color3f) per chunk,
         # a lane per camera ray in pixel order (read where a pair's jump needs them)
         self.colors = []
@@ -221,5 +222,5 @@ class Boundary(Samples, Pairs, Terms, Visibility, Shadows, Checker, Chain, Tir, 
         self.recorded = {}
         self.adopted = False  # whether they are those a primal render recorded (adopt)
         self.chain_shape, self.chain_prim, self.chain_t, self.chain_cell = [], [], [], []
-        self.chain_tir, self.chain_lit, self.chain_occluder = [], [], []
+        self.chain_tir, self.chain_lit, self.chain_occluder, self.chain_stopper = [], [], [], []
         self.chain_normal = []

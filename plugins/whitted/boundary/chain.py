@@ -60,7 +60,7 @@ class Chain:
         lights only are read)."""
         scene, table = self.scene, self.terms.geometry
         out = {"chain_" + name: [] for name in ("shape", "prim", "t", "cell", "tir", "lit",
-                                                 "occluder")}
+                                                 "occluder", "stopper")}
         if normals:
             out["chain_normal"] = []
         for _ in range(self.chain_depth):
@@ -75,7 +75,8 @@ class Chain:
             alive = found & keys_k["go"]
             ray, tir = keys_k["next"], keys_k["tir"]
             dr.eval(keys_k, si_k.n if normals else [], at_tir, alive)
-            for name, value in _host_keys(keys_k).items():  # (lit, occluder: one per light)
+            # (lit, occluder and stopper: lists, one per light)
+            for name, value in _host_keys(keys_k).items():
                 out["chain_" + name] += value if isinstance(value, list) else [value]
             if normals:
                 out["chain_normal"] += [c.numpy() for c in si_k.n]  # (its x, y, z planes)
@@ -138,7 +139,7 @@ class Chain:
                                       choices, "chain")
         if (kind == CHAIN_SHADOW).any():
             index = d * len(self.lights) + light
-            blocker = self.blocker(self.chain_lit, self.chain_occluder, index, L, R)
-            g = self.shadow_crossing(table, final_ray, final_si, light, blocker,
+            blockers = self.blockers(self.chain_occluder, self.chain_stopper, index, L, R)
+            g = self.shadow_crossing(table, final_ray, final_si, light, blockers,
                                      kind == CHAIN_SHADOW, g, choices, "chain")
         return g

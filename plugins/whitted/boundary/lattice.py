@@ -11,17 +11,31 @@ import numpy as np
 
 NO_HIT = 0xFFFFFFFF
 STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
+LIT = 0xFFFFFFFD  # a shadow edge's key where its light lights the sample (shadow_key)
 KINDS = 7  # kinds of pairs:
 VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW = range(KINDS)
 POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
 # The chain's keys of a sample whose chain ended before a bounce (those of the first hit are
 # set for every sample): what a bounce past a chain's end holds
 DEFAULT = {"chain_shape": STOP, "chain_prim": 0, "chain_t": np.inf, "chain_normal": 0.0,
-           "chain_cell": 0, "chain_tir": False, "chain_lit": False, "chain_occluder": NO_HIT}
+           "chain_cell": 0, "chain_tir": False, "chain_lit": False, "chain_occluder": NO_HIT,
+           "chain_stopper": NO_HIT}
 # Two faces of a mesh whose unit normals' dot product is below this (60 degrees apart) lie
 # across a crease: more than the 45 degrees between neighbours of the coarsest tessellation
 # (8 segments), less than a cap's 90 degrees to a cylinder's side
 CREASE = 0.5
+
+
+def shadow_key(lit, occluder, stopper):
+    """The key that tells the sides of a shadow edge apart (numpy int64, per sample; ``lit``,
+    ``occluder`` and ``stopper``: the light's keys there, numpy, see shadows.py): LIT where
+    the light lights the sample, else the shapes that first block it and that stop it
+    (NO_HIT: none; it faces away, lies outside a spot's cone, or the light gets through
+    glass). A ray traced beside the crossing whose key is neither sample's lies past another
+    edge (``terms.py``'s jump)."""
+    both = (occluder[..., 0].astype(np.uint64) << np.uint64(32)) \
+        | stopper[..., 0].astype(np.uint64)
+    return np.where(lit, np.uint64(LIT), both).view(np.int64)
 
 
 def across_crease(a, b):
@@ -112,11 +126,12 @@ def _planes(vector):
 
 def _host_keys(keys):
     """The keys of :meth:`Boundary.hit_keys` (evaluated) as numpy arrays: shape, prim, t,
-    cell (planes), and per light lit and occluder (lists)."""
+    cell (planes), and per light lit, occluder and stopper (lists)."""
     return {"shape": keys["shape"].numpy(), "prim": keys["prim"].numpy(),
             "t": keys["t"].numpy(), "cell": _planes(keys["cell"]),
             "lit": [v.numpy() for v in keys["lit"]],
-            "occluder": [_host(v) for v in keys["occluder"]]}
+            "occluder": [_host(v) for v in keys["occluder"]],
+            "stopper": [_host(v) for v in keys["stopper"]]}
 
 
 def _host(vector):

@@ -13,6 +13,7 @@ import numpy as np
 from .checker import crossed
 from .lattice import (CHAIN_CHECKER, CHAIN_SHADOW, CHAIN_TIR, CHAIN_VISIBILITY, CHECKER,
                       KINDS, NO_HIT, POINTS, SHADOW, STOP, VISIBILITY, at, flat, nonzero)
+from .shadows import shadow_differs
 
 
 def moving_kinds(tracer, scene):
@@ -96,11 +97,16 @@ class Pairs:
         in some key (the first hit's shape, face, light and checker cell, and those of the
         chain's first ``bounces`` bounces), row-major: the lattice's order. None along the
         ring: a pair has a sample of the image."""
-        planes = [self.shape, self.prim, *self.lit, self.cell[0], self.cell[1]]
+        lights = len(self.lights)
+        # (what blocks each light first, and where it stops: their shapes, shadows.py)
+        planes = [self.shape, self.prim, *self.lit, *(o[..., 0] for o in self.occluder),
+                  *(o[..., 0] for o in self.stopper), self.cell[0], self.cell[1]]
         for d in range(bounces):
             planes += [self.chain_shape[d], self.chain_prim[d], self.chain_tir[d],
                        self.chain_cell[d][0], self.chain_cell[d][1]]
-            planes += self.chain_lit[d * len(self.lights):(d + 1) * len(self.lights)]
+            planes += self.chain_lit[d * lights:(d + 1) * lights]
+            planes += [o[..., 0] for o in self.chain_occluder[d * lights:(d + 1) * lights]]
+            planes += [o[..., 0] for o in self.chain_stopper[d * lights:(d + 1) * lights]]
         # Each entry against the one ``step`` further in row-major order (its right or lower
         # neighbour), the planes flat: comparisons of contiguous arrays, three times faster
         # than of the lattice's 2-D views
@@ -138,7 +144,7 @@ class Pairs:
         # are one crossing each (see one_crossing_per_line).
         edges = np.zeros(visibility.shape, np.int16)
         for j in range(len(self.lights)):
-            edge = same & (at(self.lit[j], L) != at(self.lit[j], R))
+            edge = same & shadow_differs(self.lit[j], self.occluder[j], self.stopper[j], L, R)
             edges += edge
             kind[edge], light[edge] = SHADOW, j
         lines = crossed(self.cell, L, R)  # u and v lines crossed
@@ -164,8 +170,10 @@ class Pairs:
             lines = crossed(self.chain_cell[d], L, R)
             shadows = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
             for j in range(len(self.lights)):
-                lit = self.chain_lit[d * len(self.lights) + j]
-                edge = ~shape_differs & (at(lit, L) != at(lit, R))
+                index = d * len(self.lights) + j
+                edge = ~shape_differs & shadow_differs(
+                    self.chain_lit[index], self.chain_occluder[index], self.chain_stopper[index],
+                    L, R)
                 shadows += edge
                 light[pending & edge & ~tir] = j
             here = pending & (shape_differs | (lines > 0) | tir | (shadows > 0))
@@ -196,8 +204,10 @@ class Pairs:
             | self.moves(at(self.shape, R))
         shadow = np.flatnonzero(kind == SHADOW)
         if len(shadow):
-            blocker = self.blocker(self.lit, self.occluder, light[shadow], L[shadow], R[shadow])
-            moves[shadow] |= self.light_moves[light[shadow]] | self.moves(blocker[:, 0])
+            moves[shadow] |= self.light_moves[light[shadow]]
+            for blocker in self.blockers(self.occluder, self.stopper, light[shadow], L[shadow],
+                                         R[shadow]):
+                moves[shadow] |= self.moves(blocker[:, 0])
         return moves
 
     def moves(self, shape):

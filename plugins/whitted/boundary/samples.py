@@ -15,10 +15,10 @@ from .spot import has_cone, spot_cosine
 # bytes of one sample's keys: its first hit's (shape, face, distance, normal, checker cell, the
 # chain's first ray, whether it goes on and is a total internal reflection) and those of each
 # bounce of the chain (shape, face, distance, normal, cell, TIR flag); per light, at the first
-# hit and each bounce: lit, blocker
+# hit and each bounce: lit, the first blocker and the stopper (shadows.py)
 BYTES_FIRST_HIT = 4 + 4 + 4 + 12 + 8 + 24 + 2
 BYTES_PER_BOUNCE = 4 + 4 + 4 + 12 + 8 + 1
-BYTES_PER_LIGHT_HIT = 1 + 8
+BYTES_PER_LIGHT_HIT = 1 + 8 + 8
 
 
 def bytes_per_sample(bounces, lights):
@@ -31,11 +31,11 @@ def bytes_per_sample(bounces, lights):
 
 def _recorded_values(keys, chain):
     """(name, Dr.Jit value) of a first hit's keys as :meth:`Boundary.recorder` keeps them: a
-    light's lit and occluder as lit{j}, occluder{j}; the chain's first ray (next_o, next_d),
+    light's lit, occluder and stopper as lit{j}, ...; the chain's first ray (next_o, next_d),
     go and tir where the scene has a mirror or glass (``chain``)."""
     for name in ("shape", "prim", "t", "cell", "normal"):
         yield name, keys[name]
-    for name in ("lit", "occluder"):
+    for name in ("lit", "occluder", "stopper"):
         for j, value in enumerate(keys[name]):
             yield f"{name}{j}", value
     if chain:
@@ -102,8 +102,8 @@ class Samples:
         self.trace_ring()
         recorded, lights = self.recorded, range(len(self.lights))
         first = {name: recorded[name] for name in ("shape", "prim", "t", "cell")}
-        first |= {"lit": [recorded[f"lit{j}"] for j in lights],
-                  "occluder": [recorded[f"occluder{j}"] for j in lights]}
+        first |= {name: [recorded[f"{name}{j}"] for j in lights]
+                  for name in ("lit", "occluder", "stopper")}
         total, columns = self.rows, self.cols
         self.put(_host_keys(first) | {"normal": [c.numpy() for c in recorded["normal"]]}, 0,
                  total)
@@ -177,34 +177,43 @@ class Samples:
         """The keys of the hits ``si`` of ``rays`` where ``hit`` (Dr.Jit, not evaluated): the
         shape (NO_HIT: none), face and distance (inf: none); the checker cell; per light,
         whether it lights the point (it faces the light, lies in a spot's cone and the
-        shadow ray is free) and what blocks it ((shape, prim); NO_HIT: nothing); and the
-        specular chain's next ray (see chain_step). ``shadows``: per light, the blocker of
-        the tracer's own shadow rays from these hits (``Tracer.trace``'s ``first_hit``);
-        None: traced here."""
+        shadow ray is free), what blocks it first and where the light stops (the occluder
+        and the stopper, (shape, prim); NO_HIT: nothing, see :meth:`Shadows.stopper_of`);
+        and the specular chain's next ray (see chain_step). ``shadows``: per light, the
+        blocker of the tracer's own shadow rays from these hits (``Tracer.trace``'s
+        ``first_hit``); None: traced here (and the stopper's walk always, in a scene with
+        glass)."""
         keys = {"shape": dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT),
                 "prim": si.prim_index, "t": dr.select(hit, si.t, dr.inf),
-                "cell": self.checker_cell(self.terms, si, hit), "lit": [], "occluder": []}
+                "cell": self.checker_cell(self.terms, si, hit), "lit": [], "occluder": [],
+                "stopper": []}
         n = self.tracer.facing_normal(si, rays)
         # (the renderer's shadow rays: lifted off a smooth mesh near a terminator)
-        lifted = None if shadows is not None else \
+        glass = self.terms.surfaces is not None and self.terms.surfaces.any_transparent
+        lifted = None if shadows is not None and not glass else \
             lifted_point(self.terms.geometry, si, hit, self.tracer.offset_scale)
         for j, light in enumerate(self.lights):
             wi, dist, _ = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
             if has_cone(light):  # its cone, cos a > 0
                 active &= spot_cosine(light, wi) > 0
-            if shadows is None:
+            shadow = None
+            if shadows is None or glass:
                 shadow = self.tracer.shadow_ray(si, wi, lifted)
                 shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
+            if shadows is None:
                 blocker = self.scene.ray_intersect_preliminary(shadow, coherent=False,
                                                                active=active)
             else:
                 blocker = shadows[j]
             blocked = active & blocker.is_valid()
             keys["lit"].append(active & ~blocked)
-            keys["occluder"].append(mi.Vector2u(
+            occluder = mi.Vector2u(
                 dr.select(blocked, dr.reinterpret_array(mi.UInt32, blocker.shape), NO_HIT),
-                blocker.prim_index))
+                blocker.prim_index)
+            keys["occluder"].append(occluder)
+            # (no glass: the first blocker stops the light)
+            keys["stopper"].append(self.stopper_of(shadow, blocked) if glass else occluder)
         keys["next"], keys["go"], keys["tir"] = self.chain_step(self.terms, si, rays)
         return keys
 

@@ -1,9 +1,24 @@
 """Shadow edges of point, spot and directional lights, and the terminator (the package
-docstring, "Pairs"): what blocks a light at the unlit sample (:meth:`Shadows.blocker`) and
-g of a shadow pair (:meth:`Shadows.shadow_crossing`): the blocker's inside function on the
+docstring, "Pairs"): where a light's shadow edge lies between two samples
+(:func:`shadow_differs`), what blocks the light at each (:meth:`Shadows.blockers`) and g of
+a shadow pair (:meth:`Shadows.shadow_crossing`): the blocker's inside function on the
 shadow rays (``visibility.py``'s), or, where the unlit sample has no blocker, N.L (the
 terminator: it has no code of its own but this) or a spot's cos a (``spot.py``). The same
-function serves the shadow edges seen along the specular chain (``chain.py``)."""
+functions serve the shadow edges seen along the specular chain (``chain.py``).
+
+A light's keys at a sample (``samples.py``) are whether it lights it, what blocks it first
+(the *occluder*) and where the light stops (the *stopper*: the renderer's shadow ray goes on
+through glass, kt once per crossing, and stops at an opaque surface or past
+max_shadow_crossings; NO_HIT where the light gets through). A shadow edge lies between two
+samples where the light lights one only, or where it is blocked at both and the occluders or
+the stoppers differ: an opaque ball's shadow inside a glass ball's (the glass nearer the
+surface: the occluder the same, the stopper not), or a glass ball's shadow meeting an opaque
+one's. Its g is the inside function of whichever of the two samples' occluders and stoppers
+changes sign between their shadow rays (the one the other sample's ray misses). Until
+2026-12-07 the keys were the lit flag and the occluder, and pairs formed where the flag
+differs: such edges had no term (an opaque ball's shadow inside a glass ball's, its ball
+moved: 22 % of Σ |w FD| at every k). What the keys still do not tell apart has none: a third
+surface crossed between them (a glass ball's shadow inside another's)."""
 
 import drjit as dr
 import mitsuba as mi
@@ -11,33 +26,94 @@ import numpy as np
 
 from ..arrays import jit_array
 from ..lift import lifted_point
-from .lattice import NO_HIT, picked
+from .lattice import NO_HIT, at, picked
 from .spot import cone_crossing
-from .terms import on_lanes, stacked
+from .terms import at_l_and_r, on_lanes, signs_differ, stacked
 from .visibility import Faces
+
+
+def shadow_differs(lit, occluder, stopper, L, R):
+    """Whether a shadow edge of a light lies between the samples of the pairs (L, R) (numpy
+    flat positions, see :func:`flat`), by that light's lattice arrays ``lit``, ``occluder``
+    and ``stopper`` (of the first hit or of a bounce of the chain): lit at one only, or
+    blocked at both with another occluder or stopper (the module docstring)."""
+    by_l, by_r = at(occluder, L)[:, 0], at(occluder, R)[:, 0]
+    blocked = (by_l != NO_HIT) & (by_r != NO_HIT)
+    return (at(lit, L) != at(lit, R)) | (blocked & (
+        (by_l != by_r) | (at(stopper, L)[:, 0] != at(stopper, R)[:, 0])))
 
 
 class Shadows:
     """The shadow edges of :class:`Boundary` (a mixin of Boundary)."""
 
     @staticmethod
-    def blocker(lit, occluder, index, L, R):
-        """(shape, prim) per pair (numpy) of what blocks light ``index`` (per pair: the first
-        index of ``lit`` and ``occluder``) at the unlit one of L and R (their flat positions,
-        see :func:`flat`; NO_HIT: nothing)."""
-        blocked_l = ~picked(lit, index, L)
-        return np.where(blocked_l[:, None], picked(occluder, index, L),
-                        picked(occluder, index, R))
+    def blockers(occluder, stopper, index, L, R):
+        """What may block light ``index`` (per pair: the index in ``occluder`` and
+        ``stopper``, a light's or a light's at a bounce) at the edge between L and R (their
+        flat positions, see :func:`flat`): (shape, prim) per pair (numpy; NO_HIT: nothing),
+        the occluder at L, at R, the stopper at L, at R."""
+        return [picked(arrays, index, side) for arrays in (occluder, stopper)
+                for side in (L, R)]
 
-    def shadow_crossing(self, table, ray, si, light, blocker, which, g, choices, name):
+    @staticmethod
+    def first_blocker(blockers):
+        """(shape, prim) per pair of what blocks the light at L, else at R (NO_HIT: at
+        neither: the terminator or a spot's cone): the unlit sample's occluder, of a shadow
+        pair whose light lights one sample only."""
+        at_l, at_r = blockers[:2]
+        return np.where((at_l[:, 0] != NO_HIT)[:, None], at_l, at_r)
+
+    def stopper_of(self, shadow, blocked):
+        """Where the light stops along the shadow rays ``shadow`` (Dr.Jit, not evaluated)
+        blocked where ``blocked``: (shape, prim) of the first surface crossed that lets no
+        light through (kt = 0), or of the crossing past which the renderer counts the light
+        as blocked (max_shadow_crossings; ``Tracer.crossings``, whose walk this follows);
+        NO_HIT where the light gets through."""
+        surfaces, limit = self.terms.surfaces, self.tracer.max_shadow_crossings
+
+        def body(o, d, maxt, shape, prim, crossings, active):
+            ray = mi.Ray3f(o, d, maxt, 0.0, mi.Color0f())
+            crossing = self.scene.ray_intersect_preliminary(ray, coherent=False, active=active)
+            crossed = active & crossing.is_valid()
+            slot = surfaces.slot(crossing.shape, crossing.prim_index, crossed)
+            kt = surfaces.get("refractivity", slot, crossed)
+            crossings += 1
+            stops = crossed & ((kt <= 0) | (crossings >= limit))
+            shape = dr.select(stops, dr.reinterpret_array(mi.UInt32, crossing.shape), shape)
+            prim = dr.select(stops, crossing.prim_index, prim)
+            onward = crossed & ~stops
+            p = ray(crossing.t)
+            step = (1.0 + dr.max(dr.abs(p))) * (mi.math.RayEpsilon * self.tracer.offset_scale)
+            o = dr.select(onward, p + step * d, o)
+            maxt = dr.select(onward, maxt - crossing.t - step, maxt)
+            return o, d, maxt, shape, prim, crossings, onward
+
+        state = (mi.Point3f(shadow.o), mi.Vector3f(shadow.d), mi.Float(shadow.maxt),
+                 dr.full(mi.UInt32, NO_HIT, dr.width(blocked)), mi.UInt32(0), mi.UInt32(0),
+                 mi.Bool(blocked))
+        _, _, _, shape, prim, _, _ = dr.while_loop(state, lambda *s: s[-1], body,
+                                                   label="shadow stopper")
+        return mi.Vector2u(shape, prim)
+
+    def shadow_crossing(self, table, ray, si, light, blockers, which, g, choices, name):
         """g of the shadow pairs ``which`` (numpy) of light ``light`` (per pair) at the hits
-        ``si`` of the stacked rays ``ray``: the blocking primitive's inside function on the
-        shadow rays; where the unlit sample has no blocker, it faces away from the light
-        (the terminator: N.L) or lies outside a spot's cone (cos a, where its sign differs
+        ``si`` of the stacked rays ``ray``: the inside function, on the shadow rays, of the
+        first of ``blockers`` (:meth:`blockers`: the occluders and stoppers at L and R)
+        whose sign differs between L and R (the unlit sample's occluder if none does);
+        where the unlit sample has no blocker, it faces away from the light (the
+        terminator: N.L) or lies outside a spot's cone (cos a, where its sign differs
         between L and R). ``choices``: see g_at (theirs: under ``name`` and the light)."""
         lanes = dr.width(si.p)
         lifted = lifted_point(table, si, si.is_valid(), self.tracer.offset_scale)
-        unblocked = jit_array(mi.Bool, stacked(blocker[:, 0] == NO_HIT, lanes))
+        first = self.first_blocker(blockers)
+        unblocked = jit_array(mi.Bool, stacked(first[:, 0] == NO_HIT, lanes))
+        # the other candidates: where the light is blocked at both samples (shadow_differs),
+        # the blockers that are not the first
+        both = (blockers[0][:, 0] != NO_HIT) & (blockers[1][:, 0] != NO_HIT)
+        others = [b for b in blockers if np.any(both & (b[:, 0] != NO_HIT)
+                                                 & (b[:, 0] != first[:, 0]))]
+        candidates = [first] + [np.where((both & (b[:, 0] != NO_HIT))[:, None], b, first)
+                                for b in others]
         for j, source in enumerate(self.lights):
             mask = which & (light == j)
             if not mask.any():
@@ -48,17 +124,44 @@ class Shadows:
             facing = dr.dot(self.tracer.facing_normal(si, ray), wi)
             made = choices.get((name, "shadow", j))
             facing, crosses = cone_crossing(source, wi, facing, made, len(which), lanes)
-            if made is None:  # (the blocker's face and edge where the pair's segment of
-                # shadow rays leaves the blocking mesh: Visibility.outline)
-                faces = Faces(table, blocker[:, 0], blocker[:, 1])
-                _, edge, walked = self.outline(table, shadow, faces)
-                made = (crosses, edge, walked)
+            if made is None:  # (each candidate's face and edge where the pair's segment of
+                # shadow rays leaves the blocking mesh: Visibility.outline; which one's
+                # function changes sign between L and R)
+                outlines = [self.outline(table, shadow, Faces(table, b[:, 0], b[:, 1]))[1:]
+                            for b in candidates]
+                chosen = None
+                if len(candidates) > 1:
+                    with dr.suspend_grad():
+                        ends = at_l_and_r(shadow, len(which))
+                        g_l, g_r = ([self.inside(table, rays, self._faces(table, b, walked),
+                                                 edge) for b, (edge, walked)
+                                     in zip(candidates, outlines)] for rays in ends)
+                        chosen = dr.zeros(mi.UInt32, len(which))  # (none: the first)
+                        for c in reversed(range(len(candidates))):
+                            chosen = dr.select(signs_differ(g_l[c], g_r[c]), c, chosen)
+                        dr.eval(chosen)
+                made = (crosses, outlines, chosen)
             choices[(name, "shadow", j)] = (crosses,) + made[1:]
-            _, edge, prim = made
-            blocking = Faces(table, stacked(blocker[:, 0], lanes), stacked(blocker[:, 1], lanes))
-            if prim is not None:  # (followed to the mesh's outline)
-                blocking = blocking.with_prim(on_lanes(prim, lanes))
-            gs = self.inside(table, shadow, blocking, on_lanes(edge, lanes))
+            _, outlines, chosen = made
+            gs = [self.inside(table, shadow, self._faces(table, b, walked, lanes),
+                              on_lanes(edge, lanes))
+                  for b, (edge, walked) in zip(candidates, outlines)]
+            pick = gs[0]
+            if chosen is not None:
+                chosen = on_lanes(chosen, lanes)
+                for c in range(1, len(gs)):
+                    pick = dr.select(chosen == c, gs[c], pick)
             g = dr.select(jit_array(mi.Bool, stacked(mask, lanes)),
-                          dr.select(unblocked, facing, gs), g)
+                          dr.select(unblocked, facing, pick), g)
         return g
+
+    @staticmethod
+    def _faces(table, blocker, walked, lanes=None):
+        """The :class:`Faces` of ``blocker`` ((shape, prim) per pair), their primitives those
+        ``walked`` to the mesh's outline where not None (Visibility.outline); per pair, or
+        on the stacked rays' ``lanes``."""
+        if lanes is None:
+            faces = Faces(table, blocker[:, 0], blocker[:, 1])
+            return faces if walked is None else faces.with_prim(walked)
+        faces = Faces(table, stacked(blocker[:, 0], lanes), stacked(blocker[:, 1], lanes))
+        return faces if walked is None else faces.with_prim(on_lanes(walked, lanes))

@@ -16,7 +16,7 @@ import numpy as np
 from ..arrays import jit_array
 from ..hits import MESH
 from .lattice import (CHAIN_SHADOW, CHAIN_VISIBILITY, CHECKER, DEFAULT, NO_HIT, POINTS, SHADOW,
-                      VISIBILITY, _host, across_crease, at, flat, span)
+                      VISIBILITY, _host, across_crease, at, flat, shadow_key, span)
 
 PAIRS_PER_CHUNK = 1 << 16
 LIMIT = 0.02  # lattice units: how close to a crossing its one-sided colors are traced
@@ -296,8 +296,8 @@ class Terms:
         left, right = ((ends.shape[i], ends.prim[i], ends.t[i]) for i in (0, 1))
         choice = self.visibility(table, ray, left, right, choices, "first")
         if (kind == SHADOW).any():
-            blocker = self.blocker(self.lit, self.occluder, light, ends.l, ends.r)
-            choice = self.shadow_crossing(table, ray, si, light, blocker, kind == SHADOW, choice,
+            blockers = self.blockers(self.occluder, self.stopper, light, ends.l, ends.r)
+            choice = self.shadow_crossing(table, ray, si, light, blockers, kind == SHADOW, choice,
                                           choices, "first")
         # checker lines
         if (kind == CHECKER).any():
@@ -399,18 +399,20 @@ class Terms:
 
     def edge_key(self, flat_points, kind, light, depth):
         """The key that tells the sides of a pair's edge apart (numpy, per pair) at lattice
-        samples (flat positions): for a shadow edge, whether its light lights the sample;
-        for an edge seen along the chain, the shape its bounce ``depth`` meets (a chain's
-        shadow edge: whether the light lights that bounce)."""
+        samples (flat positions): for a shadow edge, whether its light lights the sample and
+        else what blocks it (``shadows.shadow_key``); for an edge seen along the chain, the
+        shape its bounce ``depth`` meets (a chain's shadow edge: the shadow key at that
+        bounce)."""
         out = np.zeros(len(kind), np.int64)
         for (k, j, d), where in _groups(kind, light, depth):
-            if k == SHADOW:
-                plane = self.lit[j]
-            elif k == CHAIN_VISIBILITY:
-                plane = self.chain_shape[d]
-            else:
-                plane = self.chain_lit[d * len(self.lights) + j]
-            out[where] = at(plane, flat_points[where])
+            points = flat_points[where]
+            if k == CHAIN_VISIBILITY:
+                out[where] = at(self.chain_shape[d], points)
+                continue
+            index = j if k == SHADOW else d * len(self.lights) + j
+            arrays = (self.lit, self.occluder, self.stopper) if k == SHADOW else \
+                (self.chain_lit, self.chain_occluder, self.chain_stopper)
+            out[where] = shadow_key(*(at(a[index], points) for a in arrays))
         return out
 
     def traced(self, points, keyed=None, kind=None, light=None, depth=None, paths=None):
@@ -438,7 +440,8 @@ class Terms:
             color = self.tracer.trace(self.scene, ray, self.terms, first_hit=first_hit).color
             # (the first hit's lights: read for the keyed shadow edges only; a Path is the
             # chain's)
-            dr.eval(color, seen, [keys[0]["lit"]] if wanted else [])
+            dr.eval(color, seen, [keys[0][name] for name in ("lit", "occluder", "stopper")]
+                    if wanted else [])
             colors = _host(color).reshape(sets, count, 3)
             shapes = seen[0].numpy().reshape(sets, count)
             normals = _host(seen[1]).reshape(sets, count, 3)
@@ -473,15 +476,19 @@ class Terms:
         out = np.zeros(len(lanes), np.int64)
         for (k, j, d), where in _groups(kind2, light2, depth2):
             if k == SHADOW:
-                out[where] = first["lit"][j].numpy()[lanes[where]]
+                out[where] = shadow_key(first["lit"][j].numpy()[lanes[where]],
+                                        _host(first["occluder"][j])[lanes[where]],
+                                        _host(first["stopper"][j])[lanes[where]])
             elif k == CHAIN_VISIBILITY:
                 shape = chain["chain_shape"]
                 out[where] = shape[d][lanes[where]] if d < len(shape) else \
                     DEFAULT["chain_shape"]
             else:
                 lit, flat_j = chain["chain_lit"], d * len(self.lights) + j
-                out[where] = lit[flat_j][lanes[where]] if flat_j < len(lit) else \
-                    DEFAULT["chain_lit"]
+                out[where] = shadow_key(*(chain[name][flat_j][lanes[where]] for name in
+                                          ("chain_lit", "chain_occluder", "chain_stopper"))) \
+                    if flat_j < len(lit) else shadow_key(False, np.full(2, NO_HIT),
+                                                         np.full(2, NO_HIT))  # (past the end)
         return Traced(colors, shapes, normals, out.reshape(sets, len(keyed)), found)
 
     def path_at(self, flat_points):
