@@ -195,7 +195,13 @@ class Boundary(Samples, Pairs, Terms, Visibility, Shadows, Checker, Chain, Tir, 
             self.shape_moves[[ids[name] for name in ad.moving_shapes()]] = True
         self.light_moves = np.array([light_moves(light) for light in self.lights], bool)
         self.chain_depth = chain_depth(tracer.max_depth)  # the chain's bounces followed
-        per_sample = bytes_per_sample(self.chain_depth, len(self.lights))
+        surfaces = self.terms.surfaces
+        # glass: the lights' keys hold where each light stops (shadows.py), else the first
+        # blocker stops it (the stopper arrays are the occluder's)
+        self.glass = surfaces is not None and surfaces.any_transparent
+        specular = surfaces is not None and surfaces.any_specular  # (a chain at all)
+        per_sample = bytes_per_sample(self.chain_depth if specular else 0, len(self.lights),
+                                      self.glass)
         need = width * height * spp * per_sample
         # the specular chain's keys are traced in blocks of at most this many samples (their
         # Dr.Jit arrays and the host's copy: within the budget, and within a chunk's size)

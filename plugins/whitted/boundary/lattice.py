@@ -131,7 +131,7 @@ def _host_keys(keys):
             "t": keys["t"].numpy(), "cell": _planes(keys["cell"]),
             "lit": [v.numpy() for v in keys["lit"]],
             "occluder": [_host(v) for v in keys["occluder"]],
-            "stopper": [_host(v) for v in keys["stopper"]]}
+            "stopper": [_host(v) for v in keys.get("stopper", [])]}  # (none without glass)
 
 
 def _host(vector):

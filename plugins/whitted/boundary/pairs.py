@@ -99,17 +99,19 @@ class Pairs:
         ring: a pair has a sample of the image."""
         lights = len(self.lights)
         # (what blocks each light first, and where it stops: their shapes, shadows.py)
+        own = self.stopper is not self.occluder  # (no glass: the occluders are the stoppers)
         planes = [self.shape, self.prim, *self.lit, *(o[..., 0] for o in self.occluder),
-                  *(o[..., 0] for o in self.stopper), self.cell[0], self.cell[1]]
+                  *(o[..., 0] for o in self.stopper if own), self.cell[0], self.cell[1]]
         for d in range(bounces):
             planes += [self.chain_shape[d], self.chain_prim[d], self.chain_tir[d],
                        self.chain_cell[d][0], self.chain_cell[d][1]]
             planes += self.chain_lit[d * lights:(d + 1) * lights]
             planes += [o[..., 0] for o in self.chain_occluder[d * lights:(d + 1) * lights]]
-            planes += [o[..., 0] for o in self.chain_stopper[d * lights:(d + 1) * lights]]
+            planes += [o[..., 0] for o in self.chain_stopper[d * lights:(d + 1) * lights]
+                       if own]
         # Each entry against the one ``step`` further in row-major order (its right or lower
         # neighbour), the planes flat: comparisons of contiguous arrays, three times faster
-        # than of the lattice's 2-D views
+        # than of the lattice's 2-D views (a blocker's shape plane is copied so first)
         rows, cols = self.rows, self.cols
         step = 1 if axis == 1 else cols
         differs = np.zeros(rows * cols, bool)  # (by L's flat position)

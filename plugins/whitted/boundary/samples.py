@@ -15,18 +15,21 @@ from .spot import has_cone, spot_cosine
 # bytes of one sample's keys: its first hit's (shape, face, distance, normal, checker cell, the
 # chain's first ray, whether it goes on and is a total internal reflection) and those of each
 # bounce of the chain (shape, face, distance, normal, cell, TIR flag); per light, at the first
-# hit and each bounce: lit, the first blocker and the stopper (shadows.py)
+# hit and each bounce: lit and the first blocker, and where the light stops in a scene with
+# glass (shadows.py)
 BYTES_FIRST_HIT = 4 + 4 + 4 + 12 + 8 + 24 + 2
 BYTES_PER_BOUNCE = 4 + 4 + 4 + 12 + 8 + 1
-BYTES_PER_LIGHT_HIT = 1 + 8 + 8
+BYTES_PER_LIGHT_HIT = 1 + 8
+BYTES_PER_STOPPER = 8
 
 
-def bytes_per_sample(bounces, lights):
+def bytes_per_sample(bounces, lights, glass):
     """The bytes of one lattice sample's keys with ``bounces`` bounces of the chain followed
-    and ``lights`` lights: what the memory budget admits a lattice by (the arrays of a bounce
-    no chain reaches are never made: an upper bound)."""
-    return BYTES_FIRST_HIT + bounces * BYTES_PER_BOUNCE \
-        + lights * BYTES_PER_LIGHT_HIT * (1 + bounces)
+    (0 in a scene without mirrors and glass), ``lights`` lights and, with ``glass``, their
+    stoppers: what the memory budget admits a lattice by (the arrays of a bounce no chain
+    reaches are never made: an upper bound)."""
+    per_light = BYTES_PER_LIGHT_HIT + (BYTES_PER_STOPPER if glass else 0)
+    return BYTES_FIRST_HIT + bounces * BYTES_PER_BOUNCE + lights * per_light * (1 + bounces)
 
 
 def _recorded_values(keys, chain):
@@ -103,11 +106,12 @@ class Samples:
         recorded, lights = self.recorded, range(len(self.lights))
         first = {name: recorded[name] for name in ("shape", "prim", "t", "cell")}
         first |= {name: [recorded[f"{name}{j}"] for j in lights]
-                  for name in ("lit", "occluder", "stopper")}
+                  for name in ("lit", "occluder") + (("stopper",) if self.glass else ())}
         total, columns = self.rows, self.cols
         self.put(_host_keys(first) | {"normal": [c.numpy() for c in recorded["normal"]]}, 0,
                  total)
         if "go" not in recorded:  # (no mirror, no glass: no chain)
+            self.stoppers_of_occluders()
             return
         block = max(self.block_lanes // columns, 1)
         for first_row in range(0, total, block):
@@ -120,6 +124,13 @@ class Samples:
                 self.put(self.chain_keys(ray, dr.gather(mi.Bool, recorded["go"], lane),
                                          dr.gather(mi.Bool, recorded["tir"], lane)),
                          first_row, rows)
+        self.stoppers_of_occluders()
+
+    def stoppers_of_occluders(self):
+        """In a scene without glass the first blocker stops each light: the stoppers'
+        arrays are the occluders' (no keys of their own, shadows.py)."""
+        if not self.glass:
+            self.stopper, self.chain_stopper = self.occluder, self.chain_occluder
 
     def put(self, keys, first, rows):
         """Write ``keys`` (numpy, of lattice rows first .. first + rows - 1; lists: per light,
@@ -189,7 +200,7 @@ class Samples:
                 "stopper": []}
         n = self.tracer.facing_normal(si, rays)
         # (the renderer's shadow rays: lifted off a smooth mesh near a terminator)
-        glass = self.terms.surfaces is not None and self.terms.surfaces.any_transparent
+        glass = self.glass
         lifted = None if shadows is not None and not glass else \
             lifted_point(self.terms.geometry, si, hit, self.tracer.offset_scale)
         for j, light in enumerate(self.lights):
@@ -212,8 +223,8 @@ class Samples:
                 dr.select(blocked, dr.reinterpret_array(mi.UInt32, blocker.shape), NO_HIT),
                 blocker.prim_index)
             keys["occluder"].append(occluder)
-            # (no glass: the first blocker stops the light)
-            keys["stopper"].append(self.stopper_of(shadow, blocked) if glass else occluder)
+            if glass:  # (else the first blocker stops the light: no key of its own)
+                keys["stopper"].append(self.stopper_of(shadow, blocked))
         keys["next"], keys["go"], keys["tir"] = self.chain_step(self.terms, si, rays)
         return keys
 

@@ -7,18 +7,21 @@ terminator: it has no code of its own but this) or a spot's cos a (``spot.py``).
 functions serve the shadow edges seen along the specular chain (``chain.py``).
 
 A light's keys at a sample (``samples.py``) are whether it lights it, what blocks it first
-(the *occluder*) and where the light stops (the *stopper*: the renderer's shadow ray goes on
-through glass, kt once per crossing, and stops at an opaque surface or past
-max_shadow_crossings; NO_HIT where the light gets through). A shadow edge lies between two
-samples where the light lights one only, or where it is blocked at both and the occluders or
-the stoppers differ: an opaque ball's shadow inside a glass ball's (the glass nearer the
-surface: the occluder the same, the stopper not), or a glass ball's shadow meeting an opaque
-one's. Its g is the inside function of whichever of the two samples' occluders and stoppers
-changes sign between their shadow rays (the one the other sample's ray misses). Until
-2026-12-07 the keys were the lit flag and the occluder, and pairs formed where the flag
-differs: such edges had no term (an opaque ball's shadow inside a glass ball's, its ball
-moved: 22 % of Σ |w FD| at every k). What the keys still do not tell apart has none: a third
-surface crossed between them (a glass ball's shadow inside another's)."""
+(the *occluder*) and, in a scene with glass, where the light stops (the *stopper*: the
+renderer's shadow ray goes on through glass, kt once per crossing, and stops at an opaque
+surface or at the max_shadow_crossings-th crossing; NO_HIT where the light gets through;
+without glass the occluder). A shadow edge lies between two samples where the light lights
+one only, or where it is blocked at both, gets through glass at one at least, and the
+occluders or the stoppers differ: an opaque ball's shadow inside a glass pane's (the glass
+nearer the surface: the occluder the same, the stopper not), or a glass ball's shadow
+meeting an opaque one's. Its g is the inside function of whichever of the two samples'
+occluders and stoppers changes sign between their shadow rays (the one the other sample's
+ray misses). Until 2026-12-07 the keys were the lit flag and the occluder, and pairs formed
+where the lit flag differs: such edges had no term (a ball above a glass pane, moved: its
+derivative was zero, ``tests/plugins/whitted/boundary/test_shadows.py``). What the keys
+still do not tell apart has none: a third surface crossed between the occluder and the
+stopper (a glass ball's shadow inside another's), and the terminator or a spot's cone inside
+a glass blocker's shadow (blocked at one sample, facing away at the other)."""
 
 import drjit as dr
 import mitsuba as mi
@@ -36,11 +39,14 @@ def shadow_differs(lit, occluder, stopper, L, R):
     """Whether a shadow edge of a light lies between the samples of the pairs (L, R) (numpy
     flat positions, see :func:`flat`), by that light's lattice arrays ``lit``, ``occluder``
     and ``stopper`` (of the first hit or of a bounce of the chain): lit at one only, or
-    blocked at both with another occluder or stopper (the module docstring)."""
+    blocked at both, its light getting through glass at one at least, with another occluder
+    or stopper (the module docstring; where it gets through at neither, both sides are dark
+    and the edge has no jump: no pair, which would cost a checker line or an edge along the
+    chain between the same samples theirs)."""
     by_l, by_r = at(occluder, L)[:, 0], at(occluder, R)[:, 0]
-    blocked = (by_l != NO_HIT) & (by_r != NO_HIT)
-    return (at(lit, L) != at(lit, R)) | (blocked & (
-        (by_l != by_r) | (at(stopper, L)[:, 0] != at(stopper, R)[:, 0])))
+    stop_l, stop_r = at(stopper, L)[:, 0], at(stopper, R)[:, 0]
+    through = (by_l != NO_HIT) & (by_r != NO_HIT) & ((stop_l == NO_HIT) | (stop_r == NO_HIT))
+    return (at(lit, L) != at(lit, R)) | (through & ((by_l != by_r) | (stop_l != stop_r)))
 
 
 class Shadows:
@@ -66,9 +72,9 @@ class Shadows:
     def stopper_of(self, shadow, blocked):
         """Where the light stops along the shadow rays ``shadow`` (Dr.Jit, not evaluated)
         blocked where ``blocked``: (shape, prim) of the first surface crossed that lets no
-        light through (kt = 0), or of the crossing past which the renderer counts the light
-        as blocked (max_shadow_crossings; ``Tracer.crossings``, whose walk this follows);
-        NO_HIT where the light gets through."""
+        light through (kt = 0), or of the max_shadow_crossings-th crossing, at which the
+        renderer counts the light as blocked (``Tracer.crossings``, whose walk this
+        follows); NO_HIT where the light gets through."""
         surfaces, limit = self.terms.surfaces, self.tracer.max_shadow_crossings
 
         def body(o, d, maxt, shape, prim, crossings, active):
@@ -109,7 +115,7 @@ class Shadows:
         unblocked = jit_array(mi.Bool, stacked(first[:, 0] == NO_HIT, lanes))
         # the other candidates: where the light is blocked at both samples (shadow_differs),
         # the blockers that are not the first
-        both = (blockers[0][:, 0] != NO_HIT) & (blockers[1][:, 0] != NO_HIT)
+        both = which & (blockers[0][:, 0] != NO_HIT) & (blockers[1][:, 0] != NO_HIT)
         others = [b for b in blockers if np.any(both & (b[:, 0] != NO_HIT)
                                                  & (b[:, 0] != first[:, 0]))]
         candidates = [first] + [np.where((both & (b[:, 0] != NO_HIT))[:, None], b, first)
@@ -139,7 +145,9 @@ class Shadows:
                         chosen = dr.zeros(mi.UInt32, len(which))  # (none: the first)
                         for c in reversed(range(len(candidates))):
                             chosen = dr.select(signs_differ(g_l[c], g_r[c]), c, chosen)
-                        dr.eval(chosen)
+                # (evaluated now: a later call reads them, not their graph; g_at evaluates
+                # the Dr.Jit arrays of choices, not those in lists)
+                dr.eval(chosen, [v for outline in outlines for v in outline if v is not None])
                 made = (crosses, outlines, chosen)
             choices[(name, "shadow", j)] = (crosses,) + made[1:]
             _, outlines, chosen = made

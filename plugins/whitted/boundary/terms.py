@@ -476,17 +476,19 @@ class Terms:
         out = np.zeros(len(lanes), np.int64)
         for (k, j, d), where in _groups(kind2, light2, depth2):
             if k == SHADOW:
+                stopper = (first["stopper"] or first["occluder"])[j]  # (no glass: no own)
                 out[where] = shadow_key(first["lit"][j].numpy()[lanes[where]],
                                         _host(first["occluder"][j])[lanes[where]],
-                                        _host(first["stopper"][j])[lanes[where]])
+                                        _host(stopper)[lanes[where]])
             elif k == CHAIN_VISIBILITY:
                 shape = chain["chain_shape"]
                 out[where] = shape[d][lanes[where]] if d < len(shape) else \
                     DEFAULT["chain_shape"]
             else:
                 lit, flat_j = chain["chain_lit"], d * len(self.lights) + j
-                out[where] = shadow_key(*(chain[name][flat_j][lanes[where]] for name in
-                                          ("chain_lit", "chain_occluder", "chain_stopper"))) \
+                stoppers = chain["chain_stopper"] or chain["chain_occluder"]  # (as above)
+                out[where] = shadow_key(*(keys[flat_j][lanes[where]] for keys in
+                                          (lit, chain["chain_occluder"], stoppers))) \
                     if flat_j < len(lit) else shadow_key(False, np.full(2, NO_HIT),
                                                          np.full(2, NO_HIT))  # (past the end)
         return Traced(colors, shapes, normals, out.reshape(sets, len(keyed)), found)

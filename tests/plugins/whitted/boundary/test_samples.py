@@ -19,8 +19,8 @@ def test_keys_in_chunks_and_blocks_of_rows_give_the_derivative_of_one_block(mi):
     from raymitsuba.options import RenderOptions
     from raymitsuba.plugins.whitted.boundary import chain_depth, samples
 
-    # (one point light, the default depth)
-    per_sample = samples.bytes_per_sample(chain_depth(RenderOptions().max_depth), 1)
+    # (one point light, the default depth, a mirror and no glass)
+    per_sample = samples.bytes_per_sample(chain_depth(RenderOptions().max_depth), 1, False)
     budget = W * H * 16 * per_sample
     w = weights()
     one = reverse(mi, MIRRORED_SHADOW, "camera.eye", w, 16)
