@@ -13,10 +13,10 @@ tunes these scenes: run many seeds, not the ones that pass.
 
 **The reference** (``random_scenes.compare``). The central difference of the image
 rendered on the k_FD x k_FD lattice (``--fd-k``, spp = k_FD^2; the lattice stands for the
-pixel integral) with a step
-h that moves the nearest edges by about EDGE_PX pixel (:func:`step`: from the pixel's size
-at the object's depth). It is validated against the same at k_FD / 2 and against h / 2 on
-the k_FD lattice; the FD's own uncertainty is the larger of the two differences (of the
+pixel integral) with the step h / 2, h moving the nearest edges by about EDGE_PX pixel
+(:func:`step`: from the pixel's size at the object's depth; the step was h until
+2026-12-07). It is validated against the same at k_FD / 2 and against the step h on the
+k_FD lattice; the FD's own uncertainty is the larger of the two differences (of the
 weighted sum, relative to |FD|), and a case whose uncertainty exceeds FD_UNSTABLE (or
 whose FD is zero: nothing visible moves) is *flagged* and not counted; so is one whose
 image has a kink at the key's value (the weighted second difference above FD_KINK of the
@@ -30,9 +30,9 @@ differ by more than 1e-4 relative).
 Printed, per key kind: the number of cases counted (and flagged), the median and worst
 relative error of the weighted sum Sum w AD vs Sum w FD (fixed random weights), relative to
 |Sum w FD| and to Sum |w FD|, at each k, the median per-pixel relative L2 ||AD - FD|| /
-||FD|| (and the FD's own: the larger of its per-pixel differences at k_FD / 2 and h / 2,
-the floor under that column: the step moves edges by EDGE_PX pixel, and an edge running
-along a pixel's border is shared between two), and whether the median errors fall with k
+||FD|| (and the FD's own: the larger of its per-pixel differences at k_FD / 2 and at h,
+the floor under that column: the step moves edges by EDGE_PX / 2 pixel, and an edge
+running along a pixel's border is shared between two), and whether the median errors fall with k
 (and in how many cases the error at the last k is not below the first's). ``--cases``
 also prints each case (seed, key, errors), so that a bad one can be taken apart:
 ``--seeds 1 --first-seed SEED --kinds KIND``.
@@ -141,8 +141,9 @@ def main():
                 if "flag" in case:
                     line += f" [{case['flag']}]"
                 print(line, flush=True)
-    print(f"\n{args.seeds} seeds from {args.first_seed}, {args.size}, FD k = {args.fd_k} "
-          f"(validated at k = {args.fd_k // 2} and h/2; flagged above {FD_UNSTABLE:.0%}), "
+    print(f"\n{args.seeds} seeds from {args.first_seed}, {args.size}, FD k = {args.fd_k}, "
+          f"step h/2 (validated at k = {args.fd_k // 2} and at h; flagged above "
+          f"{FD_UNSTABLE:.0%}), "
           f"{time.perf_counter() - started:.0f} s\n")
     table(cases, ks, kinds)
     bad = [c for c in cases if c.get("reverse_vs_forward", 0) > 1e-4]

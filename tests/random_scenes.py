@@ -9,9 +9,13 @@ plane (checkered or a mirror), glass and mirror materials, point / directional /
 lights, a random camera looking at the objects. Nobody tunes these scenes.
 
 :func:`compare`: the reference is the central difference of the image on the k_FD x k_FD
-lattice (spp = k_FD^2) with a step that moves the nearest edges by about EDGE_PX pixel
-(:func:`step`), validated against the same at k_FD / 2 and at h / 2 (the FD's uncertainty:
-the larger difference); AD is forward mode on the k x k lattice for each k asked for.
+lattice (spp = k_FD^2) with the step h / 2, h moving the nearest edges by about EDGE_PX
+pixel (:func:`step`), validated against the same at k_FD / 2 and at h (the FD's
+uncertainty: the larger difference); AD is forward mode on the k x k lattice for each k
+asked for. (The reference was the step h until 2026-12-07: where an edge moves faster than
+the nearest one, or runs by a pixel's border, a pixel's difference at h is off by up to
+half of it, and the weighted sum by a point or more of Σ |w FD|: docs/gradients.md, "The
+reference's own step, per pixel".)
 """
 
 from __future__ import annotations
@@ -331,9 +335,9 @@ def compare(mi, s, kind, size, fd_k, ks, reverse_check=False):
     hh = step(scale)
     started = time.perf_counter()
     base = []  # (the image at the key's value, and the second difference / 2h)
-    fd = lattice_difference(mi, s.text, key, direction, hh, fd_k, size, base)
-    coarse = lattice_difference(mi, s.text, key, direction, hh, fd_k // 2, size)
-    half = lattice_difference(mi, s.text, key, direction, hh / 2, fd_k, size)
+    whole = lattice_difference(mi, s.text, key, direction, hh, fd_k, size, base)  # (step h)
+    fd = lattice_difference(mi, s.text, key, direction, hh / 2, fd_k, size)  # the reference
+    coarse = lattice_difference(mi, s.text, key, direction, hh / 2, fd_k // 2, size)
     fd_sum = float(np.sum(wts * fd))
     size_sum = float(np.sum(np.abs(wts * fd)))
     out = dict(seed=s.seed, kind=kind, key=key, h=hh, fd_sum=fd_sum, fd_size=size_sum)
@@ -341,10 +345,10 @@ def compare(mi, s, kind, size, fd_k, ks, reverse_check=False):
         out.update(flag="FD zero: nothing visible moves")
         return out
     unc = max(abs(float(np.sum(wts * coarse)) - fd_sum),
-              abs(float(np.sum(wts * half)) - fd_sum))
+              abs(float(np.sum(wts * whole)) - fd_sum))
     out["fd_uncertainty"] = unc / abs(fd_sum)
     out["fd_uncertainty_size"] = unc / size_sum
-    out["fd_pixel_uncertainty"] = max(relative_l2(coarse, fd), relative_l2(half, fd))
+    out["fd_pixel_uncertainty"] = max(relative_l2(coarse, fd), relative_l2(whole, fd))
     # a kink: the one-sided differences (I(+h) - I) / h and (I - I(-h)) / h differ by twice
     # this (an edge that lies on the image's border, or moves into it one way only); the
     # central difference is then their mean, which no derivative is
