@@ -15,8 +15,9 @@ tunes these scenes: run many seeds, not the ones that pass.
 rendered on the k_FD x k_FD lattice (``--fd-k``, spp = k_FD^2; the lattice stands for the
 pixel integral) with the step h / 2, h moving the nearest edges by about EDGE_PX pixel
 (:func:`step`: from the pixel's size at the object's depth; the step was h until
-2026-12-07). It is validated against the same at k_FD / 2 and against the step h on the
-k_FD lattice; the FD's own uncertainty is the larger of the two differences (of the
+2026-12-07). It is validated against the step h on the k_FD lattice, and the lattice
+against k_FD / 2 at the step h; the FD's own uncertainty is the larger of the two
+differences (of the
 weighted sum, relative to |FD|), and a case whose uncertainty exceeds FD_UNSTABLE (or
 whose FD is zero: nothing visible moves) is *flagged* and not counted; so is one whose
 image has a kink at the key's value (the weighted second difference above FD_KINK of the
@@ -30,7 +31,7 @@ differ by more than 1e-4 relative).
 Printed, per key kind: the number of cases counted (and flagged), the median and worst
 relative error of the weighted sum Sum w AD vs Sum w FD (fixed random weights), relative to
 |Sum w FD| and to Sum |w FD|, at each k, the median per-pixel relative L2 ||AD - FD|| /
-||FD|| (and the FD's own: the larger of its per-pixel differences at k_FD / 2 and at h,
+||FD|| (and the FD's own: the larger of its per-pixel differences at h, and at k_FD / 2,
 the floor under that column: the step moves edges by EDGE_PX / 2 pixel, and an edge
 running along a pixel's border is shared between two), and whether the median errors fall with k
 (and in how many cases the error at the last k is not below the first's). ``--cases``
@@ -142,7 +143,7 @@ def main():
                     line += f" [{case['flag']}]"
                 print(line, flush=True)
     print(f"\n{args.seeds} seeds from {args.first_seed}, {args.size}, FD k = {args.fd_k}, "
-          f"step h/2 (validated at k = {args.fd_k // 2} and at h; flagged above "
+          f"step h/2 (validated at h, and at k = {args.fd_k // 2} at h; flagged above "
           f"{FD_UNSTABLE:.0%}), "
           f"{time.perf_counter() - started:.0f} s\n")
     table(cases, ks, kinds)

@@ -10,9 +10,9 @@ lights, a random camera looking at the objects. Nobody tunes these scenes.
 
 :func:`compare`: the reference is the central difference of the image on the k_FD x k_FD
 lattice (spp = k_FD^2) with the step h / 2, h moving the nearest edges by about EDGE_PX
-pixel (:func:`step`), validated against the same at k_FD / 2 and at h (the FD's
-uncertainty: the larger difference); AD is forward mode on the k x k lattice for each k
-asked for. (The reference was the step h until 2026-12-07: where an edge moves faster than
+pixel (:func:`step`), validated against the same at h, and that against k_FD / 2 at h (the
+FD's uncertainty: the larger difference; the same renders and checks as before, so the
+same cases are flagged); AD is forward mode on the k x k lattice for each k asked for. (The reference was the step h until 2026-12-07: where an edge moves faster than
 the nearest one, or runs by a pixel's border, a pixel's difference at h is off by up to
 half of it, and the weighted sum by a point or more of Σ |w FD|: docs/gradients.md, "The
 reference's own step, per pixel".)
@@ -337,18 +337,20 @@ def compare(mi, s, kind, size, fd_k, ks, reverse_check=False):
     base = []  # (the image at the key's value, and the second difference / 2h)
     whole = lattice_difference(mi, s.text, key, direction, hh, fd_k, size, base)  # (step h)
     fd = lattice_difference(mi, s.text, key, direction, hh / 2, fd_k, size)  # the reference
-    coarse = lattice_difference(mi, s.text, key, direction, hh / 2, fd_k // 2, size)
+    # (the lattice checked at the step h, against the k_FD lattice's: at h / 2 a lattice of
+    # k_FD / 2 moves the nearest edges across some 6 of its points, whose count is noise)
+    coarse = lattice_difference(mi, s.text, key, direction, hh, fd_k // 2, size)
     fd_sum = float(np.sum(wts * fd))
     size_sum = float(np.sum(np.abs(wts * fd)))
     out = dict(seed=s.seed, kind=kind, key=key, h=hh, fd_sum=fd_sum, fd_size=size_sum)
     if size_sum == 0.0 or fd_sum == 0.0:
         out.update(flag="FD zero: nothing visible moves")
         return out
-    unc = max(abs(float(np.sum(wts * coarse)) - fd_sum),
+    unc = max(abs(float(np.sum(wts * coarse)) - float(np.sum(wts * whole))),
               abs(float(np.sum(wts * whole)) - fd_sum))
     out["fd_uncertainty"] = unc / abs(fd_sum)
     out["fd_uncertainty_size"] = unc / size_sum
-    out["fd_pixel_uncertainty"] = max(relative_l2(coarse, fd), relative_l2(whole, fd))
+    out["fd_pixel_uncertainty"] = max(relative_l2(coarse, whole), relative_l2(whole, fd))
     # a kink: the one-sided differences (I(+h) - I) / h and (I - I(-h)) / h differ by twice
     # this (an edge that lies on the image's border, or moves into it one way only); the
     # central difference is then their mean, which no derivative is
