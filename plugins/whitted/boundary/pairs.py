@@ -99,16 +99,18 @@ class Pairs:
         ring: a pair has a sample of the image."""
         lights = len(self.lights)
         # (what blocks each light first, and where it stops: their shapes, shadows.py)
-        own = self.stopper is not self.occluder  # (no glass: the occluders are the stoppers)
-        planes = [self.shape, self.prim, *self.lit, *(o[..., 0] for o in self.occluder),
-                  *(o[..., 0] for o in self.stopper if own), self.cell[0], self.cell[1]]
+        # (without glass a shadow edge is where lit differs: the blockers add no pair)
+        glass = self.glass
+        planes = [self.shape, self.prim, *self.lit, self.cell[0], self.cell[1]]
+        if glass:
+            planes += [o[..., 0] for o in self.occluder] + [o[..., 0] for o in self.stopper]
         for d in range(bounces):
             planes += [self.chain_shape[d], self.chain_prim[d], self.chain_tir[d],
                        self.chain_cell[d][0], self.chain_cell[d][1]]
             planes += self.chain_lit[d * lights:(d + 1) * lights]
-            planes += [o[..., 0] for o in self.chain_occluder[d * lights:(d + 1) * lights]]
-            planes += [o[..., 0] for o in self.chain_stopper[d * lights:(d + 1) * lights]
-                       if own]
+            if glass:
+                planes += [o[..., 0] for o in self.chain_occluder[d * lights:(d + 1) * lights]]
+                planes += [o[..., 0] for o in self.chain_stopper[d * lights:(d + 1) * lights]]
         # Each entry against the one ``step`` further in row-major order (its right or lower
         # neighbour), the planes flat: comparisons of contiguous arrays, three times faster
         # than of the lattice's 2-D views (a blocker's shape plane is copied so first)
@@ -146,7 +148,8 @@ class Pairs:
         # are one crossing each (see one_crossing_per_line).
         edges = np.zeros(visibility.shape, np.int16)
         for j in range(len(self.lights)):
-            edge = same & shadow_differs(self.lit[j], self.occluder[j], self.stopper[j], L, R)
+            edge = same & (shadow_differs(self.lit[j], self.occluder[j], self.stopper[j], L, R)
+                           if self.glass else at(self.lit[j], L) != at(self.lit[j], R))
             edges += edge
             kind[edge], light[edge] = SHADOW, j
         lines = crossed(self.cell, L, R)  # u and v lines crossed
@@ -173,9 +176,10 @@ class Pairs:
             shadows = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
             for j in range(len(self.lights)):
                 index = d * len(self.lights) + j
-                edge = ~shape_differs & shadow_differs(
+                edge = ~shape_differs & (shadow_differs(
                     self.chain_lit[index], self.chain_occluder[index], self.chain_stopper[index],
-                    L, R)
+                    L, R) if self.glass else at(self.chain_lit[index], L)
+                    != at(self.chain_lit[index], R))
                 shadows += edge
                 light[pending & edge & ~tir] = j
             here = pending & (shape_differs | (lines > 0) | tir | (shadows > 0))
