@@ -58,8 +58,10 @@ class Shadows:
         ``stopper``, a light's or a light's at a bounce) at the edge between L and R (their
         flat positions, see :func:`flat`): (shape, prim) per pair (numpy; NO_HIT: nothing),
         the occluder at L, at R, the stopper at L, at R."""
-        return [picked(arrays, index, side) for arrays in (occluder, stopper)
-                for side in (L, R)]
+        at_l, at_r = picked(occluder, index, L), picked(occluder, index, R)
+        if stopper is occluder:  # (no glass: the first blocker stops the light)
+            return [at_l, at_r, at_l, at_r]
+        return [at_l, at_r, picked(stopper, index, L), picked(stopper, index, R)]
 
     @staticmethod
     def first_blocker(blockers):

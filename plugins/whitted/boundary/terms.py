@@ -476,10 +476,11 @@ class Terms:
         out = np.zeros(len(lanes), np.int64)
         for (k, j, d), where in _groups(kind2, light2, depth2):
             if k == SHADOW:
-                stopper = (first["stopper"] or first["occluder"])[j]  # (no glass: no own)
-                out[where] = shadow_key(first["lit"][j].numpy()[lanes[where]],
-                                        _host(first["occluder"][j])[lanes[where]],
-                                        _host(stopper)[lanes[where]])
+                occluder = _host(first["occluder"][j])[lanes[where]]
+                stopper = _host(first["stopper"][j])[lanes[where]] if first["stopper"] \
+                    else occluder  # (no glass: the first blocker stops the light)
+                out[where] = shadow_key(first["lit"][j].numpy()[lanes[where]], occluder,
+                                        stopper)
             elif k == CHAIN_VISIBILITY:
                 shape = chain["chain_shape"]
                 out[where] = shape[d][lanes[where]] if d < len(shape) else \
