@@ -111,6 +111,17 @@ class Trace(NamedTuple):
     signature: object = None  # UInt32: each ray's path signature (signature.py), if asked
 
 
+class Walk(NamedTuple):
+    """A shadow ray's walk through the surfaces it crosses (``Tracer.crossings``)."""
+
+    transmittance: mi.Float  # the product of kt over the crossings; 0 where blocked
+    slots: tuple  # max_shadow_crossings UInt32: the slot of each crossing the light passed,
+    # in order, NO_SLOT past the last (None: not recorded)
+    stopper: mi.Vector2u  # (shape, prim) of the surface that blocks the light: kt <= 0, or
+    # the crossing past max_shadow_crossings; shape 0xFFFFFFFF where the light gets through
+    # (None: not asked)
+
+
 class TreeTooLarge(Exception):
     """The ray tree would hold more rays than ``max_rays`` (generation ``depth``, of
     ``lanes`` rays, would take it past); ``rays_per_generation``: the generations traced."""
@@ -379,17 +390,22 @@ class Tracer:
                     shadows.append(blocker)
             if not surfaces.any_transparent:
                 return dr.select(blocked, 0.0, 1.0)  # nothing lets light through
-            transmittance, crossed_slots = self.crossings(scene, surfaces, ray, active & blocked,
-                                                          record)
-        return with_kt_derivative(surfaces, transmittance, crossed_slots)
+            walk = self.crossings(scene, surfaces, ray, active & blocked, record)
+        return with_kt_derivative(surfaces, walk.transmittance, walk.slots)
 
-    def crossings(self, scene, surfaces, ray, active, record=False):
-        """(Product of kt over the surfaces ``ray`` crosses, 0 past max_shadow_crossings;
-        with ``record``, the slot of each crossing that let the ray through, in order, as
-        max_shadow_crossings UInt32 (NO_SLOT past the last one), else None)."""
+    def crossings(self, scene, surfaces, ray, active, record=False, stop=False):
+        """The walk of the shadow rays ``ray`` (where ``active``: they are blocked) through
+        the surfaces they cross, up to the light (``ray.maxt``): a :class:`Walk`.
+
+        Each crossing multiplies the transmittance by its surface's kt; the walk ends at a
+        surface that lets no light through (kt <= 0), where nothing more is crossed, or past
+        max_shadow_crossings crossings: a ray that would cross more transparent surfaces
+        than that counts as blocked (docs/format.md), its transmittance 0. With ``record``,
+        the slot of each crossing that let the ray through, in order; with ``stop``, the
+        surface at which the light counts as blocked (``boundary/shadows.py``'s stopper)."""
         limit = self.max_shadow_crossings
 
-        def body(ray, transmittance, crossings, slots, active):
+        def body(ray, transmittance, crossings, slots, stopper, active):
             # Only the distance and the BSDF of each crossing matter: a preliminary
             # intersection is enough. The next ray starts just past the crossing.
             crossing = scene.ray_intersect_preliminary(ray, coherent=False, active=active)
@@ -402,7 +418,13 @@ class Tracer:
                           for k, recorded in enumerate(slots))
             crossings += 1
             # Past max_shadow_crossings the light counts as blocked.
-            transmittance = dr.select(onward & (crossings >= limit), 0.0, transmittance)
+            past = onward & (crossings > limit)
+            transmittance = dr.select(past, 0.0, transmittance)
+            if stopper:
+                stops = crossed & ~(onward & ~past)
+                stopper = (dr.select(stops, dr.reinterpret_array(mi.UInt32, crossing.shape),
+                                     stopper[0]),
+                           dr.select(stops, crossing.prim_index, stopper[1]))
             p = ray(crossing.t)
             step = (1.0 + dr.max(dr.abs(p))) * (mi.math.RayEpsilon * self.offset_scale)
             # (not mi.Ray3f(o, d, maxt): with three arguments the third is the ray's *time*,
@@ -410,13 +432,15 @@ class Tracer:
             ray = mi.Ray3f(dr.select(onward, p + step * ray.d, ray.o), ray.d,
                            dr.select(onward, ray.maxt - crossing.t - step, ray.maxt),
                            ray.time, ray.wavelengths)
-            return ray, transmittance, crossings, slots, onward & (crossings < limit)
+            return ray, transmittance, crossings, slots, stopper, onward & ~past
 
         slots = tuple(mi.UInt32(NO_SLOT) for _ in range(limit if record else 0))
-        state = (ray, mi.Float(1.0), mi.UInt32(0), slots, mi.Bool(active))
-        _, transmittance, _, slots, _ = dr.while_loop(state, lambda *s: s[-1], body,
-                                                      label="shadow ray")
-        return transmittance, (slots if record else None)
+        stopper = (mi.UInt32(NO_SLOT), mi.UInt32(0)) if stop else ()
+        state = (ray, mi.Float(1.0), mi.UInt32(0), slots, stopper, mi.Bool(active))
+        _, transmittance, _, slots, stopper, _ = dr.while_loop(
+            state, lambda *s: s[-1], body, label="shadow ray")
+        return Walk(transmittance, slots if record else None,
+                    mi.Vector2u(*stopper) if stop else None)
 
     def spawn(self, generation, step, path_weight=None, min_weight=None):
         """Record the children of ``generation`` and return their rays (None: no children)

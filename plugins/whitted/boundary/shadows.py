@@ -9,7 +9,7 @@ functions serve the shadow edges seen along the specular chain (``chain.py``).
 A light's keys at a sample (``samples.py``) are whether it lights it, what blocks it first
 (the *occluder*) and, in a scene with glass, where the light stops (the *stopper*: the
 renderer's shadow ray goes on through glass, kt once per crossing, and stops at an opaque
-surface or at the max_shadow_crossings-th crossing; NO_HIT where the light gets through;
+surface or past max_shadow_crossings crossings; NO_HIT where the light gets through;
 without glass the occluder). A shadow edge lies between two samples where the light lights
 one only, or where it is blocked at both, gets through glass at one at least, and the
 occluders or the stoppers differ: an opaque ball's shadow inside a glass pane's (the glass
@@ -74,34 +74,12 @@ class Shadows:
     def stopper_of(self, shadow, blocked):
         """Where the light stops along the shadow rays ``shadow`` (Dr.Jit, not evaluated)
         blocked where ``blocked``: (shape, prim) of the first surface crossed that lets no
-        light through (kt = 0), or of the max_shadow_crossings-th crossing, at which the
-        renderer counts the light as blocked (``Tracer.crossings``, whose walk this
-        follows); NO_HIT where the light gets through."""
-        surfaces, limit = self.terms.surfaces, self.tracer.max_shadow_crossings
-
-        def body(o, d, maxt, shape, prim, crossings, active):
-            ray = mi.Ray3f(o, d, maxt, 0.0, mi.Color0f())
-            crossing = self.scene.ray_intersect_preliminary(ray, coherent=False, active=active)
-            crossed = active & crossing.is_valid()
-            slot = surfaces.slot(crossing.shape, crossing.prim_index, crossed)
-            kt = surfaces.get("refractivity", slot, crossed)
-            crossings += 1
-            stops = crossed & ((kt <= 0) | (crossings >= limit))
-            shape = dr.select(stops, dr.reinterpret_array(mi.UInt32, crossing.shape), shape)
-            prim = dr.select(stops, crossing.prim_index, prim)
-            onward = crossed & ~stops
-            p = ray(crossing.t)
-            step = (1.0 + dr.max(dr.abs(p))) * (mi.math.RayEpsilon * self.tracer.offset_scale)
-            o = dr.select(onward, p + step * d, o)
-            maxt = dr.select(onward, maxt - crossing.t - step, maxt)
-            return o, d, maxt, shape, prim, crossings, onward
-
-        state = (mi.Point3f(shadow.o), mi.Vector3f(shadow.d), mi.Float(shadow.maxt),
-                 dr.full(mi.UInt32, NO_HIT, dr.width(blocked)), mi.UInt32(0), mi.UInt32(0),
-                 mi.Bool(blocked))
-        _, _, _, shape, prim, _, _ = dr.while_loop(state, lambda *s: s[-1], body,
-                                                   label="shadow stopper")
-        return mi.Vector2u(shape, prim)
+        light through (kt = 0), or of the crossing past max_shadow_crossings, at which the
+        renderer counts the light as blocked; NO_HIT where the light gets through. The
+        renderer's own walk (``Tracer.crossings``) finds it."""
+        with dr.suspend_grad():
+            return self.tracer.crossings(self.scene, self.terms.surfaces, shadow, blocked,
+                                         stop=True).stopper
 
     def shadow_crossing(self, table, ray, si, light, blockers, which, g, choices, name):
         """g of the shadow pairs ``which`` (numpy) of light ``light`` (per pair) at the hits

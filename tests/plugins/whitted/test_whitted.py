@@ -398,3 +398,29 @@ plane
 """
     image = render_ray(text, 9, 9)
     assert np.allclose(image[4, 4], 0.25, atol=1e-6)  # float32 rounding of the walk
+
+
+def panes_over_the_floor(panes, kt=0.9):
+    """.RAY text: the floor point (0, 0, 0) lit from (0, 3, 0) straight above through
+    ``panes`` clear horizontal triangles (kt ``kt``, ior 1) between y = 0.5 and 2.5, out of
+    the camera's sight of that point; ka = ks = 0."""
+    lines = ["eye 0 0.3 4", "lookat 0 0 0", "light 1 1 1 point 0 3 0",
+             "material 1 1 1 0 1 0 1 0 0 1", "plane",
+             f"material 0 0 0 0 0 0 1 0 {kt} 1"]
+    for i in range(panes):
+        y = 0.5 + 2.0 * i / max(panes, 1)
+        # (the vertical through the origin crosses each one inside, off its edges)
+        lines.append(f"triangle -0.3 {y} -0.3  0.5 {y} -0.3  -0.3 {y} 0.5")
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("panes", [15, 16, 17])
+def test_a_shadow_ray_is_blocked_past_max_shadow_crossings(panes):
+    """docs/format.md: a shadow ray that crosses more than 16 transparent surfaces (the
+    default max_shadow_crossings) counts as blocked. The floor point under 15 and 16 clear
+    panes (kt 0.9) is lit with T = 0.9^n, so L = kd C (N.L) T = 0.9^n; under 17 it is
+    black. (Until 2026-12-07 the 16th crossing already blocked it.) A product of 16 float32
+    factors is within a few ulps of the float64 value."""
+    image = render_ray(panes_over_the_floor(panes), 9, 9)
+    expected = 0.9 ** panes if panes <= 16 else 0.0
+    assert image[4, 4] == pytest.approx(np.full(3, expected), rel=1e-5, abs=1e-7)
