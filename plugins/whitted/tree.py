@@ -122,6 +122,15 @@ class Walk(NamedTuple):
     # (None: not asked)
 
 
+class Shadow(NamedTuple):
+    """A light's shadow rays from the first generation's hits, as ``Tracer.trace``'s
+    ``first_hit`` receives them."""
+
+    blocker: mi.PreliminaryIntersection3f  # the closest surface between the hit and the light
+    stopper: mi.Vector2u  # in a scene with glass, where the light stops (Walk.stopper) where
+    # it is blocked; None without glass (the blocker stops it)
+
+
 class TreeTooLarge(Exception):
     """The ray tree would hold more rays than ``max_rays`` (generation ``depth``, of
     ``lanes`` rays, would take it past); ``rays_per_generation``: the generations traced."""
@@ -178,8 +187,9 @@ class Tracer:
         camera rays' colors are left unevaluated, for a caller that evaluates them with what
         it computes from them (an adjoint pass: with the derivative, in its kernel); a gather
         from them would evaluate them alone. ``first_hit``: optional callable(si, ray, hit,
-        shadows) given the first generation's hits and, per light, its shadow rays' closest
-        blocker (a PreliminaryIntersection3f), lazily, as they are traced (the
+        shadows) given the first generation's hits and, per light, its shadow rays'
+        :class:`Shadow` (their closest blocker; in a scene with glass, where the light
+        stops), lazily, as they are traced (the
         boundary terms' keys, boundary/samples.py, computed in the same kernel). ``queries``:
         optional: who answers the first generation's ray queries (``camera(scene, ray,
         coherent)``: each ray's closest hit; ``shadow(scene, light, ray, active)``: the
@@ -367,8 +377,9 @@ class Tracer:
     def transmittance(self, scene, surfaces, si, wi, dist, active, lifted=None, shadows=None,
                       blocker=None):
         """Product of kt over the surfaces between si.p and the light (0 when blocked).
-        ``shadows``: a list that receives the shadow ray's closest blocker, found by a
-        closest-hit query instead of the any-hit test (the same rays); ``blocker``:
+        ``shadows``: a list that receives the shadow rays' :class:`Shadow`, their closest
+        blocker found by a closest-hit query instead of the any-hit test (the same rays);
+        ``blocker``:
         optional callable(ray, active) that finds it (a ``queries``' shadow, see trace)."""
         ray = self.shadow_ray(si, wi, lifted)
         ray.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
@@ -386,11 +397,14 @@ class Tracer:
                 blocker = scene.ray_intersect_preliminary(ray, coherent=False, active=active) \
                     if blocker is None else blocker(ray, active)
                 blocked = active & blocker.is_valid()
+            if not surfaces.any_transparent:  # nothing lets light through
                 if shadows is not None:
-                    shadows.append(blocker)
-            if not surfaces.any_transparent:
-                return dr.select(blocked, 0.0, 1.0)  # nothing lets light through
-            walk = self.crossings(scene, surfaces, ray, active & blocked, record)
+                    shadows.append(Shadow(blocker, None))
+                return dr.select(blocked, 0.0, 1.0)
+            walk = self.crossings(scene, surfaces, ray, active & blocked, record,
+                                  stop=shadows is not None)
+            if shadows is not None:
+                shadows.append(Shadow(blocker, walk.stopper))
         return with_kt_derivative(surfaces, walk.transmittance, walk.slots)
 
     def crossings(self, scene, surfaces, ray, active, record=False, stop=False):

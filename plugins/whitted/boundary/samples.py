@@ -191,40 +191,42 @@ class Samples:
         shadow ray is free), what blocks it first and where the light stops (the occluder
         and the stopper, (shape, prim); NO_HIT: nothing, see :meth:`Shadows.stopper_of`);
         and the specular chain's next ray (see chain_step). ``shadows``: per light, the
-        blocker of the tracer's own shadow rays from these hits (``Tracer.trace``'s
-        ``first_hit``); None: traced here (and the stopper's walk always, in a scene with
-        glass)."""
+        tracer's own shadow rays from these hits (``tree.Shadow``: their blocker and, in a
+        scene with glass, where the light stops; ``Tracer.trace``'s ``first_hit``); None:
+        traced here."""
         keys = {"shape": dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), NO_HIT),
                 "prim": si.prim_index, "t": dr.select(hit, si.t, dr.inf),
                 "cell": self.checker_cell(self.terms, si, hit), "lit": [], "occluder": [],
                 "stopper": []}
         n = self.tracer.facing_normal(si, rays)
         # (the renderer's shadow rays: lifted off a smooth mesh near a terminator)
-        glass = self.glass
-        lifted = None if shadows is not None and not glass else \
+        lifted = None if shadows is not None else \
             lifted_point(self.terms.geometry, si, hit, self.tracer.offset_scale)
         for j, light in enumerate(self.lights):
             wi, dist, _ = light.illuminate(si.p)
             active = hit & (dr.dot(n, wi) > 0)
             if has_cone(light):  # its cone, cos a > 0
                 active &= spot_cosine(light, wi) > 0
-            shadow = None
-            if shadows is None or glass:
+            if shadows is None:
                 shadow = self.tracer.shadow_ray(si, wi, lifted)
                 shadow.maxt = dist * (1.0 - mi.math.ShadowEpsilon)
-            if shadows is None:
                 blocker = self.scene.ray_intersect_preliminary(shadow, coherent=False,
                                                                active=active)
-            else:
-                blocker = shadows[j]
+            else:  # (the tracer's, which walked through glass to the stopper too)
+                blocker, stopper = shadows[j]
             blocked = active & blocker.is_valid()
             keys["lit"].append(active & ~blocked)
             occluder = mi.Vector2u(
                 dr.select(blocked, dr.reinterpret_array(mi.UInt32, blocker.shape), NO_HIT),
                 blocker.prim_index)
             keys["occluder"].append(occluder)
-            if glass:  # (else the first blocker stops the light: no key of its own)
-                keys["stopper"].append(self.stopper_of(shadow, blocked))
+            if self.glass:  # (else the first blocker stops the light: no key of its own)
+                keys["stopper"].append(
+                    self.stopper_of(shadow, blocked) if shadows is None else
+                    # (its walk ran where the light is blocked and faces the hit, also out
+                    # of a spot's cone)
+                    mi.Vector2u(dr.select(blocked, stopper.x, NO_HIT),
+                                dr.select(blocked, stopper.y, 0)))
         keys["next"], keys["go"], keys["tir"] = self.chain_step(self.terms, si, rays)
         return keys
 
