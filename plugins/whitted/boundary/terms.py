@@ -29,6 +29,9 @@ RIM_LIMIT, FILM_ULPS = 2e-4, 4
 # the crossing's refinement: g at two points either side of it, this share of its distance
 # to the nearer sample away, at least REFINE_MIN lattice units (float32's g resolves it)
 REFINE, REFINE_MIN = 0.25, 0.005
+# How far past L's and R's values of g those beside the crossing may lie (a share of their
+# difference: float rounding of a g nearly linear) for a pair that they do not bracket
+MONOTONE_SLACK = 0.05
 # the pairs whose traced sides are checked against L's and R's keys (Terms.jump), and the
 # bisections that find where the renderer's rays switch where they do not match
 KEYED, SWITCH_STEPS = (SHADOW, CHAIN_VISIBILITY, CHAIN_SHADOW), 10
@@ -74,6 +77,17 @@ def slope_across(w, at_l, at_r):
     ok_l, ok_r = np.isfinite(at_l), np.isfinite(at_r)
     at_l, at_r = np.where(ok_l, at_l, 0.0), np.where(ok_r, at_r, 0.0)
     return np.where(ok_l & ok_r, (1.0 - w) * at_l + w * at_r, np.where(ok_l, at_l, at_r))
+
+
+def within(gl, gr, *values, slack=MONOTONE_SLACK):
+    """Where ``values`` (numpy, per pair) all lie within the range of g's values ``gl`` and
+    ``gr`` at a pair's samples, widened by ``slack`` times its width either side."""
+    low, high = np.minimum(gl, gr), np.maximum(gl, gr)
+    margin = slack * (high - low)
+    inside = np.ones(np.shape(gl), bool)
+    for value in values:
+        inside &= (value >= low - margin) & (value <= high + margin)
+    return inside
 
 
 def _evaluated(si):
@@ -234,6 +248,13 @@ class Terms:
         # function reads, adds no term: selected out, as a product with 0 would carry NaN in
         # forward mode)
         valid &= np.isfinite(gm) & np.isfinite(gp)
+        # (nor does one whose g beside the crossing neither brackets it nor lies within L's
+        # and R's values: g is not monotone between the samples -- another face's function
+        # past a fold, a mesh's outline seen in a mirror ball near its rim -- and neither
+        # the crossing nor its rate is known at the lattice's resolution: the derivative of
+        # g far from its zero is no rate of the edge, and made terms of 30 times a pair's
+        # size)
+        valid &= bracket | within(gl, gr, gm, gp)
         scale = np.where(valid, normal2 / (self.k ** 2 * np.where(valid, along, 1.0)), 0.0)
         rate = -(g_star - dr.detach(g_star)) * jit_array(mi.Float, scale.astype(np.float32))
         rate = dr.select(jit_array(mi.Bool, valid), rate, 0.0)
