@@ -66,7 +66,10 @@ class Pairs:
         for axis in (1, 0):  # rows (X, X + 1), then columns (Y, Y + 1)
             ly, lx = self.candidates(axis, bounces)
             L, R = (ly, lx), (ly + (axis == 0), lx + (axis == 1))
-            kind, light, depth = self.classify(L, R, bounces)
+            index, kind, light, depth = self.classify(L, R, bounces)
+            if index is not None:  # (a pair across several edges: one entry each)
+                ly, lx = ly[index], lx[index]
+                L, R = (ly, lx), (ly + (axis == 0), lx + (axis == 1))
             keep = self.kept(kind)
             if not self.camera_moves:  # (if it does, every edge moves)
                 where = np.flatnonzero(keep)
@@ -133,34 +136,42 @@ class Pairs:
         return nonzero(lattice)
 
     def classify(self, L, R, bounces):
-        """(kind (int8; -1: none, or left out), light, depth) of the pairs (L, R) (numpy
-        (Y, X) each, one entry per pair): what edge lies between their samples."""
+        """(index, kind (int8; -1: none, or left out), light, depth) of the pairs (L, R)
+        (numpy (Y, X) each, one entry per pair): what edge lies between their samples.
+        Where edges of several kinds, or of several lights, lie between the two samples
+        on one surface (a shadow edge across a checker line, two lights' shadow edges),
+        the pair has an entry for each (appended after the others: ``index``, int64, the
+        pair of each entry; None: one entry a pair, in order). Each is a crossing of its
+        own, its g its edge's and its jump traced either side of it (``Terms.jump``)."""
         L, R = flat(L, self.cols), flat(R, self.cols)  # (read at: see flat)
         visibility = self.surface_differs(self.shape, self.prim, self.normal, L, R)
         kind = np.full(visibility.shape, -1, np.int8)  # (small types: a pass per array)
         light = np.zeros(visibility.shape, self.light_type)
         kind[visibility] = VISIBILITY
         same = ~visibility & (at(self.shape, L) != NO_HIT)
-        # On one surface, a pair across one kind of edge only: where a shadow edge and a
-        # checker line (or two shadow edges) pass between the same two samples, the jump
-        # f_L - f_R is the sum of both and belongs to neither alone (such pairs are left
-        # out: a share of the crossings that falls as 1/k). Checker lines, however many,
-        # are one crossing each (see one_crossing_per_line).
+        extra = []  # (pairs, kind, light, depth) of the entries past each pair's first
+        # On one surface: a shadow edge per light whose keys differ, checker lines (however
+        # many: one crossing each, see one_crossing_per_line)
         edges = np.zeros(visibility.shape, np.int16)
+        shadows = []
         for j in range(len(self.lights)):
             edge = same & (shadow_differs(self.lit[j], self.occluder[j], self.stopper[j], L, R)
                            if self.glass else at(self.lit[j], L) != at(self.lit[j], R))
             edges += edge
+            shadows.append(edge)
             kind[edge], light[edge] = SHADOW, j
         lines = crossed(self.cell, L, R)  # u and v lines crossed
         checker = same & (lines > 0)
         edges += checker
         kind[checker] = CHECKER
-        kind[same & (edges > 1)] = -1
+        several = same & (edges > 1)
+        if several.any():
+            extra += self._entries(several, shadows, checker, SHADOW, CHECKER, -1)
+            kind[several] = -1  # (its entries: appended)
         # Seen along the specular chain (mirrors, glass): the first bounce whose key
         # differs, if the first hits are alike: total internal reflection switching at
-        # the surface the bounce leaves, else a visibility edge, checker lines or one
-        # shadow edge (a pair across edges of two kinds at that bounce is left out).
+        # the surface the bounce leaves, else a visibility edge, else checker lines and
+        # shadow edges (an entry each, as on the surface seen).
         depth = np.full(visibility.shape, -1, np.int8)
         pending = same & (edges == 0)
         for d in range(bounces):  # (past every chain's end: no pair)
@@ -173,29 +184,56 @@ class Pairs:
             shape_differs = self.surface_differs(self.chain_shape[d], self.chain_prim[d],
                                                  self.chain_normal[3 * d:3 * d + 3], L, R)
             lines = crossed(self.chain_cell[d], L, R)
-            shadows = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
+            count = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
+            shadows = []
             for j in range(len(self.lights)):
                 index = d * len(self.lights) + j
                 edge = ~shape_differs & (shadow_differs(
                     self.chain_lit[index], self.chain_occluder[index], self.chain_stopper[index],
                     L, R) if self.glass else at(self.chain_lit[index], L)
                     != at(self.chain_lit[index], R))
-                shadows += edge
+                count += edge
+                shadows.append(pending & edge & ~tir)
                 light[pending & edge & ~tir] = j
-            here = pending & (shape_differs | (lines > 0) | tir | (shadows > 0))
-            ok = here & ~tir & (shape_differs | ((lines > 0) & (shadows == 0))
-                                | ((lines == 0) & (shadows == 1)))
-            ok &= (cs_l != STOP) & (cs_r != STOP)
+            here = pending & (shape_differs | (lines > 0) | tir | (count > 0))
+            chained = (cs_l != STOP) & (cs_r != STOP)
+            ok = here & ~tir & chained & (shape_differs | ((lines > 0) & (count == 0))
+                                          | ((lines == 0) & (count == 1)))
             kind[ok & shape_differs] = CHAIN_VISIBILITY
             kind[ok & ~shape_differs & (lines > 0)] = CHAIN_CHECKER
-            kind[ok & ~shape_differs & (shadows == 1)] = CHAIN_SHADOW
+            kind[ok & ~shape_differs & (count == 1)] = CHAIN_SHADOW
+            several = here & ~tir & chained & ~shape_differs & ((lines > 0) + count > 1)
+            if several.any():
+                extra += self._entries(several, shadows, here & (lines > 0), CHAIN_SHADOW,
+                                       CHAIN_CHECKER, d)
             # total internal reflection switching at the bounce's surface: what the two
             # chains meet after it differs because of it
             switch = here & tir
             kind[switch] = CHAIN_TIR
             depth[ok | switch] = d
             pending &= ~here
-        return kind, light, depth
+        if not extra:
+            return None, kind, light, depth
+        pairs, kinds, lights, depths = (np.concatenate(a) for a in zip(*extra))
+        return (np.concatenate([np.arange(len(kind)), pairs]),
+                np.concatenate([kind, kinds.astype(kind.dtype)]),
+                np.concatenate([light, lights.astype(light.dtype)]),
+                np.concatenate([depth, depths.astype(depth.dtype)]))
+
+    @staticmethod
+    def _entries(several, shadows, checker, shadow_kind, checker_kind, depth):
+        """The entries (pairs, kind, light, depth) of the pairs ``several`` (bool) across
+        more than one edge: one for each light whose shadow edge (``shadows``, bool per
+        light) lies between the samples, and one for the checker lines (``checker``)."""
+        out = []
+        for j, edge in enumerate(shadows):
+            where = np.flatnonzero(several & edge)
+            out.append((where, np.full(len(where), shadow_kind), np.full(len(where), j),
+                        np.full(len(where), depth)))
+        where = np.flatnonzero(several & checker)
+        out.append((where, np.full(len(where), checker_kind), np.zeros(len(where), int),
+                    np.full(len(where), depth)))
+        return out
 
     def moving_edges(self, kind, light, L, R):
         """Where the edge between the samples of the pairs (L, R) (flat positions, see
