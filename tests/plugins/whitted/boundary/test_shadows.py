@@ -148,27 +148,13 @@ def test_a_shadow_inside_a_glass_panes_shadow_matches_finite_differences(mi, key
     assert relative_l2(grad, reference) < 0.12
 
 
-# Two point lights over a fine checkered floor and a ball above it: the ball's two shadows
-# cross checker lines and each other, so many pairs of samples have a shadow edge and a
-# checker line, or two lights' shadow edges, between them
-SHADOWS_ON_A_CHECKER = """\
-eye 0 3 6
-lookat 0 0 0
-fov 40
-background 0.1 0.1 0.2
-light 0.7 0.7 0.7 point 1.5 4 1
-light 0.6 0.5 0.4 point -1 5 0.5
-light 0.2 0.2 0.2 ambient
-material 0.9 0.9 0.8 0.3 0.7 0 1 0 0 1
-translate 0 -1 0
-checkerboard 0.35
-plane
-reset
-material 0.8 0.4 0.3 0.3 0.7 0.3 10 0 0 1
-translate 0.2 0 0
-scale 0.8 0.8 0.8
-sphere
-"""
+# support_edges.SHADOW under two point lights, over a fine checkered floor: the ball's two
+# shadows cross checker lines and each other, so many pairs of samples have a shadow edge
+# and a checker line, or two lights' shadow edges, between them
+SHADOWS_ON_A_CHECKER = SHADOW.replace(
+    "light 1 1 1 point 1.5 4 1\n",
+    "light 0.7 0.7 0.7 point 1.5 4 1\nlight 0.6 0.5 0.4 point -1 5 0.5\n").replace(
+    "translate 0 -1 0\nplane\n", "translate 0 -1 0\ncheckerboard 0.35\nplane\n")
 
 
 def test_a_pair_across_a_shadow_edge_and_a_checker_line_has_a_term_for_each(mi):
