@@ -118,8 +118,8 @@ class Walk(NamedTuple):
     slots: tuple  # max_shadow_crossings UInt32: the slot of each crossing the light passed,
     # in order, NO_SLOT past the last (None: not recorded)
     stopper: mi.Vector2u  # (shape, prim) of the surface that blocks the light: kt <= 0, or
-    # the crossing past max_shadow_crossings; shape 0xFFFFFFFF where the light gets through
-    # (None: not asked)
+    # the crossing past max_shadow_crossings; shape 0xFFFFFFFF (and prim 0) where the light
+    # gets through and on lanes the walk did not run (None: not asked)
 
 
 class Shadow(NamedTuple):
@@ -348,8 +348,8 @@ class Tracer:
 
     def shade(self, scene, terms, si, slot, color, ray, shadows=None, queries=None, codes=None):
         """L_local at each hit: ambient term plus each light's shadowed Phong term
-        (``shadows``: a list that receives each light's shadow blocker, ``queries``: who
-        finds it; see transmittance; ``codes``: a list that receives each light's code of
+        (``shadows``: a list that receives each light's :class:`Shadow`, ``queries``: who
+        finds its blocker; see transmittance; ``codes``: a list that receives each light's code of
         the hit's signature, ``signature.light_code``)."""
         hit = si.is_valid()
         surfaces, lights = terms.surfaces, terms.direct
@@ -434,7 +434,7 @@ class Tracer:
             # Past max_shadow_crossings the light counts as blocked.
             past = onward & (crossings > limit)
             transmittance = dr.select(past, 0.0, transmittance)
-            if stopper:
+            if stop:
                 stops = crossed & ~(onward & ~past)
                 stopper = (dr.select(stops, dr.reinterpret_array(mi.UInt32, crossing.shape),
                                      stopper[0]),

@@ -67,9 +67,12 @@ class Pairs:
             ly, lx = self.candidates(axis, bounces)
             L, R = (ly, lx), (ly + (axis == 0), lx + (axis == 1))
             index, kind, light, depth = self.classify(L, R, bounces)
+            # whether the entry's pair has others (edges of several kinds or lights)
+            shared = np.zeros(len(kind), bool)
             if index is not None:  # (a pair across several edges: one entry each)
                 ly, lx = ly[index], lx[index]
                 L, R = (ly, lx), (ly + (axis == 0), lx + (axis == 1))
+                shared = np.bincount(index)[index] > 1
             keep = self.kept(kind)
             if not self.camera_moves:  # (if it does, every edge moves)
                 where = np.flatnonzero(keep)
@@ -88,7 +91,7 @@ class Pairs:
             points = dict(L=(ly, lx), R=(ry, rx), LA=beside[0], RA=beside[1], LB=beside[2],
                           RB=beside[3])
             found.append(dict(axis=np.full(len(ly), axis), kind=kind[keep].astype(np.int64),
-                              light=light[keep].astype(np.int64),
+                              light=light[keep].astype(np.int64), shared=shared[keep],
                               depth=depth[keep].astype(np.int64), **points))
         return self.one_crossing_per_line(
             {name: (tuple(np.concatenate([f[name][i] for f in found]) for i in range(2))

@@ -74,7 +74,7 @@ class Shadows:
     def stopper_of(self, shadow, blocked):
         """Where the light stops along the shadow rays ``shadow`` (Dr.Jit, not evaluated)
         blocked where ``blocked``: (shape, prim) of the first surface crossed that lets no
-        light through (kt = 0), or of the crossing past max_shadow_crossings, at which the
+        light through (kt <= 0), or of the crossing past max_shadow_crossings, at which the
         renderer counts the light as blocked; NO_HIT where the light gets through. The
         renderer's own walk (``Tracer.crossings``) finds it."""
         with dr.suspend_grad():

@@ -243,7 +243,7 @@ class Terms:
                               (gra - grb) / span(points["RA"], points["RB"]))
         normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
         df = self.jump(ends, axis, w, kind, light, pairs["depth"][sl],
-                       self.followed(ends, kind, choices))
+                       self.followed(ends, kind, choices), pairs["shared"][sl])
         # (a pair whose g beside the crossing is undefined, a ray there seeing nothing its
         # function reads, adds no term: selected out, as a product with 0 would carry NaN in
         # forward mode)
@@ -326,11 +326,12 @@ class Terms:
                                            choices, "first")
         return choice
 
-    def jump(self, ends, axis, w, kind, light, depth, followed):
+    def jump(self, ends, axis, w, kind, light, depth, followed, shared=None):
         """f_L - f_R across each pair's crossing: the colors of two rays traced just either
         side of it (LIMIT lattice units, RIM_LIMIT for a visibility edge of the surface seen;
         within the pair; both sides stacked, one trace), where they see what L and R see
-        (else the colors of L and R themselves).
+        (else the colors of L and R themselves; ``shared``, per pair: one entry of several
+        across the same samples, ``Pairs.classify``, whose f_L - f_R is no one edge's: 0).
 
         A shadow pair, or an edge seen along the chain, whose two sides' keys for that edge
         (:meth:`edge_key`) are not L's and R's -- g's crossing is not where the renderer's
@@ -402,6 +403,8 @@ class Terms:
             other = ~same
             jump[other] = self.colors_at(tuple(p[other] for p in ends.L)) \
                 - self.colors_at(tuple(p[other] for p in ends.R))
+            if shared is not None:  # (f_L - f_R of a pair across several edges is no
+                jump[other & shared] = 0.0  # one edge's: that entry adds no term)
         return jump
 
     def same_surfaces(self, sides, ends):
