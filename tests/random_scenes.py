@@ -12,8 +12,9 @@ lights, a random camera looking at the objects. Nobody tunes these scenes.
 lattice (spp = k_FD^2) with the step h / 2, h moving the nearest edges by about EDGE_PX
 pixel (:func:`step`), validated against the same at h, and that against k_FD / 2 at h (the
 FD's uncertainty: the larger difference; the same renders and checks as before, so the
-same cases are flagged); AD is forward mode on the k x k lattice for each k asked for. (The reference was the step h until 2026-12-07: where an edge moves faster than
-the nearest one, or runs by a pixel's border, a pixel's difference at h is off by up to
+same cases are flagged); AD is forward mode on the k x k lattice for each k asked for.
+(The reference was the step h until 2026-12-07: where an edge moves faster than the nearest
+one, or runs by a pixel's border, a pixel's difference at h is off by up to
 half of it, and the weighted sum by a point or more of Σ |w FD|: docs/gradients.md, "The
 reference's own step, per pixel".)
 """

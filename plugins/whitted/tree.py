@@ -27,7 +27,7 @@ from raymitsuba.util import no_cyclic_gc
 
 from . import bailout, signature
 from .differentials import offset_children
-from .hits import HitTable
+from .hits import NO_SHAPE, HitTable
 from .lift import lifted_point
 from .surfaces import NO_SLOT, SceneTerms, with_kt_derivative
 from ..phong import phong_local
@@ -118,7 +118,7 @@ class Walk(NamedTuple):
     slots: tuple  # max_shadow_crossings UInt32: the slot of each crossing the light passed,
     # in order, NO_SLOT past the last (None: not recorded)
     stopper: mi.Vector2u  # (shape, prim) of the surface that blocks the light: kt <= 0, or
-    # the crossing past max_shadow_crossings; shape 0xFFFFFFFF (and prim 0) where the light
+    # the crossing past max_shadow_crossings; shape NO_SHAPE (and prim 0) where the light
     # gets through and on lanes the walk did not run (None: not asked)
 
 
@@ -435,7 +435,7 @@ class Tracer:
             past = onward & (crossings > limit)
             transmittance = dr.select(past, 0.0, transmittance)
             if stop:
-                stops = crossed & ~(onward & ~past)
+                stops = crossed & (~onward | past)  # (kt <= 0, or one crossing too many)
                 stopper = (dr.select(stops, dr.reinterpret_array(mi.UInt32, crossing.shape),
                                      stopper[0]),
                            dr.select(stops, crossing.prim_index, stopper[1]))
@@ -449,7 +449,7 @@ class Tracer:
             return ray, transmittance, crossings, slots, stopper, onward & ~past
 
         slots = tuple(mi.UInt32(NO_SLOT) for _ in range(limit if record else 0))
-        stopper = (mi.UInt32(NO_SLOT), mi.UInt32(0)) if stop else ()
+        stopper = (mi.UInt32(NO_SHAPE), mi.UInt32(0)) if stop else ()
         state = (ray, mi.Float(1.0), mi.UInt32(0), slots, stopper, mi.Bool(active))
         _, transmittance, _, slots, stopper, _ = dr.while_loop(
             state, lambda *s: s[-1], body, label="shadow ray")

@@ -158,8 +158,7 @@ class Pairs:
         edges = np.zeros(visibility.shape, np.int16)
         shadows = []
         for j in range(len(self.lights)):
-            edge = same & (shadow_differs(self.lit[j], self.occluder[j], self.stopper[j], L, R)
-                           if self.glass else at(self.lit[j], L) != at(self.lit[j], R))
+            edge = same & shadow_differs(self.lit[j], self.occluder[j], self.stopper[j], L, R)
             edges += edge
             shadows.append(edge)
             kind[edge], light[edge] = SHADOW, j
@@ -191,13 +190,12 @@ class Pairs:
             shadows = []
             for j in range(len(self.lights)):
                 index = d * len(self.lights) + j
-                edge = ~shape_differs & (shadow_differs(
+                edge = ~shape_differs & shadow_differs(
                     self.chain_lit[index], self.chain_occluder[index], self.chain_stopper[index],
-                    L, R) if self.glass else at(self.chain_lit[index], L)
-                    != at(self.chain_lit[index], R))
+                    L, R)
                 count += edge
                 shadows.append(pending & edge & ~tir)
-                light[pending & edge & ~tir] = j
+                light[shadows[-1]] = j
             here = pending & (shape_differs | (lines > 0) | tir | (count > 0))
             chained = (cs_l != STOP) & (cs_r != STOP)
             ok = here & ~tir & chained & (shape_differs | ((lines > 0) & (count == 0))

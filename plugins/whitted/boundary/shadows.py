@@ -42,7 +42,11 @@ def shadow_differs(lit, occluder, stopper, L, R):
     blocked at both, its light getting through glass at one at least, with another occluder
     or stopper (the module docstring; where it gets through at neither, both sides are dark
     and the edge has no jump: no pair, which would cost a checker line or an edge along the
-    chain between the same samples theirs)."""
+    chain between the same samples theirs). Without glass (the stoppers' arrays are the
+    occluders', ``Samples.stoppers_of_occluders``) it is where lit differs: the light gets
+    through no blocker, and the blockers add no pair."""
+    if stopper is occluder:
+        return at(lit, L) != at(lit, R)
     by_l, by_r = at(occluder, L)[:, 0], at(occluder, R)[:, 0]
     stop_l, stop_r = at(stopper, L)[:, 0], at(stopper, R)[:, 0]
     through = (by_l != NO_HIT) & (by_r != NO_HIT) & ((stop_l == NO_HIT) | (stop_r == NO_HIT))
