@@ -329,6 +329,9 @@ class Surfaces:
             slots = jit_array(mi.UInt32, np.flatnonzero(self.layout.material_of_slot == m))
             dr.scatter(getattr(self, name), value, slots)
         self.any_transparent = bool(np.any(self.host["refractivity"] > 0))  # any kt > 0
+        # any kt != 0 (a negative one is warned of, not refused: under total internal
+        # reflection it still adds to the reflected child's weight)
+        self.any_kt = bool(np.any(self.host["refractivity"] != 0))
         # whether some ray may have a child (some kr or kt > 0): else the tree is one generation
         self.any_specular = self.any_transparent or bool(np.any(self.host["reflectivity"] > 0))
         primitives = self.layout.primitives

@@ -278,12 +278,19 @@ class Tracer:
         n = self.facing_normal(si, ray)
         entering = dr.dot(si.n, ray.d) < 0
         eta_ratio = dr.select(entering, dr.rcp(eta), eta)
-        refracted_d, tir = refract(v, n, eta_ratio)
-        weights = (kr + dr.select(tir, kt, 0.0), dr.select(tir, 0.0, kt))
-        rays = (self.spawn_ray(si, reflect(v, n)), self.spawn_ray(si, refracted_d))
+        if surfaces.any_kt or dr.grad_enabled(kt):
+            refracted_d, tir = refract(v, n, eta_ratio)
+            weights = (kr + dr.select(tir, kt, 0.0), dr.select(tir, 0.0, kt))
+            rays = (self.spawn_ray(si, reflect(v, n)), self.spawn_ray(si, refracted_d))
+        else:  # every kt 0 (nor its derivative): no lane has a refracted child, and none is
+            # computed (its weight kt = 0; its ray the reflected one, which no lane takes: the
+            # kernel's outputs and the children's gathers are the reflected ray's only)
+            weights, rays = (kr, kt), (self.spawn_ray(si, reflect(v, n)),)
         if footprints:  # the children carry their footprints on (see differentials.py)
             rays = offset_children(ray, si, n, eta_ratio, rays, terms.geometry.normal_at, hit,
                                    reflect, refract)
+        if len(rays) == 1:
+            rays = rays * 2
         return Step(local, hit, weights, rays, own)
 
     def hit_signature(self, terms, si, base, codes):

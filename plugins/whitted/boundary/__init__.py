@@ -49,8 +49,10 @@ the sphere or the camera moves -- is subtracted per pair
 Not covered (left out, documented in docs/gradients.md): the branches of the tree other
 than the specular chain, and another edge between the two samples of a visibility pair.
 Edges of several kinds or lights between two samples of one surface (a checker line and a
-shadow edge, two lights' shadow edges) are a crossing each (:meth:`Pairs.classify`), and
-so are checker lines, however many (:meth:`Boundary.one_crossing_per_line`).
+shadow edge, two lights' shadow edges), and an edge on the surface seen with those seen
+along the chain (a shadow on a mirror, and an outline in its reflection), are a crossing
+each (:meth:`Pairs.classify`), and so are checker lines, however many
+(:meth:`Boundary.one_crossing_per_line`).
 
 **The lattice.** The samples of all pixels form one uniform grid over the image, spacing
 1/k pixel (sample (sx, sy) of pixel (px, py) is lattice point X = px k + sx, Y = py k + sy).

@@ -145,7 +145,10 @@ class Pairs:
         on one surface (a shadow edge across a checker line, two lights' shadow edges),
         the pair has an entry for each (appended after the others: ``index``, int64, the
         pair of each entry; None: one entry a pair, in order). Each is a crossing of its
-        own, its g its edge's and its jump traced either side of it (``Terms.jump``)."""
+        own, its g its edge's and its jump traced either side of it (``Terms.jump``). So is
+        an edge seen along the specular chain between the samples of a pair across an edge
+        on the surface seen (a shadow edge on a mirror, and another object's outline in its
+        reflection)."""
         L, R = flat(L, self.cols), flat(R, self.cols)  # (read at: see flat)
         visibility = self.surface_differs(self.shape, self.prim, self.normal, L, R)
         kind = np.full(visibility.shape, -1, np.int8)  # (small types: a pass per array)
@@ -176,8 +179,11 @@ class Pairs:
         # shadow edges (an entry each, as on the surface seen).
         depth = np.full(visibility.shape, -1, np.int8)
         pending = same & (edges == 0)
+        # (a pair across an edge on the surface seen: the first bounce whose keys differ adds
+        # its edges' entries, as a pair across several edges on one surface has)
+        surfaced = same & (edges > 0)
         for d in range(bounces):  # (past every chain's end: no pair)
-            if not pending.any():
+            if not (pending.any() or surfaced.any()):
                 break
             cs_l, cs_r = at(self.chain_shape[d], L), at(self.chain_shape[d], R)
             tir = at(self.chain_tir[d], L) != at(self.chain_tir[d], R)
@@ -187,17 +193,26 @@ class Pairs:
                                                  self.chain_normal[3 * d:3 * d + 3], L, R)
             lines = crossed(self.chain_cell[d], L, R)
             count = np.zeros(visibility.shape, np.int16)  # shadow edges at the bounce
-            shadows = []
+            edges_at = []  # each light's
             for j in range(len(self.lights)):
                 index = d * len(self.lights) + j
                 edge = ~shape_differs & shadow_differs(
                     self.chain_lit[index], self.chain_occluder[index], self.chain_stopper[index],
                     L, R)
                 count += edge
-                shadows.append(pending & edge & ~tir)
-                light[shadows[-1]] = j
-            here = pending & (shape_differs | (lines > 0) | tir | (count > 0))
+                edges_at.append(edge & ~tir)
+            shadows = [pending & edge for edge in edges_at]
+            for j, edge in enumerate(shadows):
+                light[edge] = j
+            differs = shape_differs | (lines > 0) | tir | (count > 0)
+            here = pending & differs
             chained = (cs_l != STOP) & (cs_r != STOP)
+            beside = surfaced & differs
+            if beside.any():
+                extra += self._chain_entries(beside, chained, tir, shape_differs, lines,
+                                             edges_at, d)
+            # (past both chains' ends their keys no longer differ)
+            surfaced &= ~beside & ((cs_l != STOP) | (cs_r != STOP))
             ok = here & ~tir & chained & (shape_differs | ((lines > 0) & (count == 0))
                                           | ((lines == 0) & (count == 1)))
             kind[ok & shape_differs] = CHAIN_VISIBILITY
@@ -235,6 +250,23 @@ class Pairs:
         out.append((where, np.full(len(where), checker_kind), np.zeros(len(where), int),
                     np.full(len(where), depth)))
         return out
+
+    @classmethod
+    def _chain_entries(cls, pairs, chained, tir, shape_differs, lines, shadows, depth):
+        """The entries (as :meth:`_entries`) of the edges at the chain's bounce ``depth``
+        between the samples of ``pairs`` (bool), as a pair with no other edge is classified
+        there: total internal reflection switching at the surface it leaves, else, where
+        both chains reach the bounce (``chained``), another surface (a visibility edge), else
+        a shadow edge for each light (``shadows``, bool per light) and the checker lines."""
+        out = []
+        pairs_tir, pairs = pairs & tir, pairs & ~tir & chained
+        for kind, where in ((CHAIN_TIR, pairs_tir), (CHAIN_VISIBILITY, pairs & shape_differs)):
+            where = np.flatnonzero(where)
+            out.append((where, np.full(len(where), kind), np.zeros(len(where), int),
+                        np.full(len(where), depth)))
+        on = pairs & ~shape_differs
+        return out + cls._entries(on, shadows, on & (lines > 0), CHAIN_SHADOW, CHAIN_CHECKER,
+                                  depth)
 
     def moving_edges(self, kind, light, L, R):
         """Where the edge between the samples of the pairs (L, R) (flat positions, see
