@@ -46,15 +46,26 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("kind, seed, k", CASES)
-def test_a_random_scenes_key_matches_the_pixel_integrated_finite_difference(mi, kind, seed,
-                                                                             k):
+def derivative_and_reference(mi, seed, kind, k):
+    """(AD in forward mode on the k x k lattice, the 64 x 64 lattice's finite difference) of
+    ``kind``'s key of random scene ``seed``, (H, W, 3) each."""
     scene = generate(seed, SIZE)
     key, direction, scale = scene.keys[kind]
     reference = lattice_difference(mi, scene.text, key, direction, step(scale), FD_K, SIZE)
-    grad = forward(mi, scene.text, key, direction, k * k, width=SIZE[0], height=SIZE[1])
+    return forward(mi, scene.text, key, direction, k * k, width=SIZE[0], height=SIZE[1]), \
+        reference
+
+
+def weighted_error(grad, reference):
+    """The weighted sum's error relative to the sum of the terms' sizes, Sum |w FD|."""
     w = weights_for(SIZE)
-    error = abs(np.sum(w * (grad - reference))) / np.sum(np.abs(w * reference))
+    return abs(np.sum(w * (grad - reference))) / np.sum(np.abs(w * reference))
+
+
+@pytest.mark.parametrize("kind, seed, k", CASES)
+def test_a_random_scenes_key_matches_the_pixel_integrated_finite_difference(mi, kind, seed,
+                                                                             k):
+    error = weighted_error(*derivative_and_reference(mi, seed, kind, k))
     assert error < 0.03, error
 
 
@@ -65,12 +76,7 @@ def test_a_diffuse_balls_radius_near_its_terminator_converges_with_k(mi):
     apply: such an edge is foreshortened, not squeezed, and k resolves it. Measured 0.09 % of
     Sum |w FD| (3.7 / 1.4 / 0.09 % at k = 4 / 8 / 16); 0.83 % when the rule took the
     sample's color there too (6.4 / 2.7 / 0.83 %). The tolerance, 0.4 %, lies between."""
-    scene = generate(25, SIZE)
-    key, direction, scale = scene.keys["sphere.radius"]
-    reference = lattice_difference(mi, scene.text, key, direction, step(scale), FD_K, SIZE)
-    grad = forward(mi, scene.text, key, direction, 16 * 16, width=SIZE[0], height=SIZE[1])
-    w = weights_for(SIZE)
-    error = abs(np.sum(w * (grad - reference))) / np.sum(np.abs(w * reference))
+    error = weighted_error(*derivative_and_reference(mi, 25, "sphere.radius", 16))
     assert error < 0.004, error
 
 
@@ -86,11 +92,7 @@ def test_a_pair_whose_g_is_not_monotone_between_its_samples_adds_no_term(mi):
     0.111 before); allowed 0.3."""
     from support_edges import relative_l2
 
-    scene = generate(5, SIZE)
-    key, direction, scale = scene.keys["sphere.center"]
-    reference = lattice_difference(mi, scene.text, key, direction, step(scale), FD_K, SIZE)
-    grad = forward(mi, scene.text, key, direction, 16 * 16, width=SIZE[0], height=SIZE[1])
-    assert relative_l2(grad, reference) < 0.3
+    assert relative_l2(*derivative_and_reference(mi, 5, "sphere.center", 16)) < 0.3
 
 
 def test_an_outline_seen_in_a_mirror_takes_its_samples_color_where_its_path_past_it_differs(mi):
@@ -100,13 +102,8 @@ def test_an_outline_seen_in_a_mirror_takes_its_samples_color_where_its_path_past
     its crossing (at the switch, where the renderer's rays change surface) see, on the
     ellipsoid's side, what its rim refracts, squeezed into a band thinner than the lattice.
     Its near side now takes its sample's color where its path past the bounce differs, as an
-    outline of the surface seen does (Terms.jump). Measured: 0.03 % of Sum |w FD| (2.1 %
+    outline of the surface seen does (Terms.jump). Measured: 0.06 % of Sum |w FD| (2.1 %
     before; 0.24 % with this rule alone, without the chain entries of pairs across a shadow
     edge on the floor, Pairs.classify); allowed 1 %, the issue's target at k = 8."""
-    scene = generate(4, SIZE)
-    key, direction, scale = scene.keys["camera.lookat"]
-    reference = lattice_difference(mi, scene.text, key, direction, step(scale), FD_K, SIZE)
-    grad = forward(mi, scene.text, key, direction, 8 * 8, width=SIZE[0], height=SIZE[1])
-    w = weights_for(SIZE)
-    error = abs(np.sum(w * (grad - reference))) / np.sum(np.abs(w * reference))
+    error = weighted_error(*derivative_and_reference(mi, 4, "camera.lookat", 8))
     assert error < 0.01, error
