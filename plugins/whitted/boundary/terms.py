@@ -430,7 +430,8 @@ class Terms:
                     if len(again[s]):
                         entries = near[s][again[s]]
                         off[s][again[s]] = switched.paths[s].differs(
-                            self.path_at(end[entries]), near_past[s][again[s]])
+                            self.path_at(end[entries]), near_past[s][again[s]]) \
+                            | followed[entries]
         if shared is not None and len(visible):
             # (not an entry of a pair across several edges: the sample's color would carry
             # the others' jumps, which their own entries count)

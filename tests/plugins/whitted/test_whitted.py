@@ -5,6 +5,7 @@ intersection helpers, reference_tracer.py), never read back from the renderer.
 """
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -424,3 +425,29 @@ def test_a_shadow_ray_is_blocked_past_max_shadow_crossings(panes):
     image = render_ray(panes_over_the_floor(panes), 9, 9)
     expected = 0.9 ** panes if panes <= 16 else 0.0
     assert image[4, 4] == pytest.approx(np.full(3, expected), rel=1e-5, abs=1e-7)
+
+
+@pytest.mark.parametrize("aa", [None, 0.02], ids=["1 spp", "--aa"])
+def test_a_scene_without_glass_renders_the_same_whether_or_not_refracted_rays_are_computed(aa):
+    """Tracer.step computes no refracted ray where every kt is 0 and none carries a
+    derivative (the refracted child's weight is kt = 0: no lane has one); with a kt's
+    gradient enabled it computes them (each lane's refracted ray, and with --aa its
+    footprint's offset rays), as it did for every scene until 2026-12-07. The reflective
+    benchmark scene (mirrors, no glass) gives the same image both ways, bit for bit, and
+    the derivative with respect to kt at 0 is 0: a child of weight 0 is not traced
+    (docs/gradients.md, "What is not covered")."""
+    import drjit as dr
+    import raymitsuba
+
+    scene = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "..", "scenes",
+                         "benchmark_reflective.ray")
+    loaded = raymitsuba.load(scene, width=48, height=36, aa=aa)
+    fast = np.array(raymitsuba.render(loaded))
+    params = loaded.params
+    dr.enable_grad(params["mat0.refractivity"])
+    params.update()
+    image = raymitsuba.render(loaded)
+    assert np.array_equal(np.array(image), fast)
+    dr.set_grad(params["mat0.refractivity"], 1.0)
+    dr.forward_to(image)
+    assert not np.any(dr.grad(image).numpy())
