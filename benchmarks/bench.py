@@ -34,7 +34,7 @@ Anti-aliasing, on the reflective scene, on scenes/aa_showcase.ray (a low camera 
 rotated, slightly reflective checkerboard to the horizon, mirror spheres and a glass
 sphere, four lights) and on a generated scene of sub-pixel detail (``fine_detail_scene``:
 a Siemens star and thin wires) at 512 x 384 against a 256-spp (16 x 16 grid: issue 31's
-reference) and a 1024-spp (32 x 32) render (``references`` says why both): the
+reference) and a 987-spp render on a golden-ratio lattice (``TRUTH_SPP`` says why): the
 share of pixels whose largest channel difference (values clamped to [0, 1]) is within
 2/255 and 8/255, and the whole-process time (wall and CPU) relative to a 1-spp render, for
 uniform 1, 4 and 16 spp and ``--aa`` (the variants run round-robin; for ``--aa`` also the
@@ -42,7 +42,7 @@ median of each round's ratio to that round's 1 spp, and one fresh process each w
 empty kernel cache); POV-Ray's ``+A0.3`` (adaptive, its default depth 3) and its uniform
 4 spp likewise against its own 16 x 16 supersampled render. Then ``--aa`` on gallery
 scenes no benchmark was tuned on (``AA_GALLERY``): its time against 1 spp and its shares
-against a 1024-spp render.
+against the 987-spp render.
 
     ./dev bench --only memory,aa     # only these sections (also: table, grad, deep)
     ./dev bench --only batch         # batch rendering on Dask (benchmarks/batch_bench.py)
@@ -264,6 +264,16 @@ def shares(image, reference):
     return 100 * float(np.mean(d <= 2 / 255 + 1e-6)), 100 * float(np.mean(d <= 8 / 255 + 1e-6))
 
 
+# The truth the anti-aliasing shares are read against: the render at this many samples a
+# pixel, which camera.py places on a golden-ratio lattice (x stratified in spp steps, y by
+# the golden ratio; 987 is a Fibonacci number: a Fibonacci lattice). A regular n x n grid
+# sees an edge along a row or column of pixels at only n + 1 coverages: the 1024-spp grid
+# (32 x 32) is off by up to 1/64 of the contrast there (2.5/255 on whitted.ray's floor
+# lines), and was within 2/255 of a 4096-spp grid on only 99.13-99.77 % of the pixels of
+# whitted, mirror_hall, the reflective scene and the showcase; this lattice, as costly, on
+# 99.99-100 % (mirror_hall 99.71 %: its horizon, where the 4096-spp grid aliases too;
+# 2026-12-07, 512 x 384, one render each)
+TRUTH_SPP = 987
 AA_THRESHOLDS = ("", 0.05, 0.01)  # "": --aa alone, the default threshold
 # Scenes of the gallery that no anti-aliasing benchmark was tuned on (aa_gallery_section)
 AA_GALLERY = ("whitted", "mirror_hall", "cornell_box", "benchmark_glass")
@@ -293,14 +303,13 @@ def fine_detail_scene(width=512, height=384, spokes=48, wires=12):
     return "\n".join(lines) + "\n"
 
 
-def references(work, path, width, height, counts=(256, 1024)):
+def references(work, path, width, height, counts=(256, TRUTH_SPP)):
     """{spp: image} of the scene at ``path`` for each spp of ``counts``: its 256-spp render
-    (a 16 x 16 grid a pixel, issue 31's reference), its 1024-spp one (32 x 32). The finer
-    one is the truth the shares are read against. Towards a checkerboard's horizon a
-    regular grid aliases, while the filtered board of ``--aa`` converges to the pixel's
-    average: on the benchmark's reflective scene the 256-spp render is itself within 2/255
-    of the 1024-spp one on only 98.5 % of the pixels (and the 1024-spp of a 4096-spp one
-    on 99.5 %)."""
+    (a 16 x 16 grid a pixel, issue 31's reference) and its TRUTH_SPP one, the truth the
+    shares are read against (see TRUTH_SPP). Towards a checkerboard's horizon a regular grid
+    aliases, while the filtered board of ``--aa`` converges to the pixel's average: on the
+    benchmark's reflective scene the 256-spp render is itself within 2/255 of a 4096-spp
+    one (64 x 64) on only 98.5 % of the pixels."""
     import numpy as np
 
     out = {}
@@ -319,12 +328,12 @@ def aa_section(work, repeats, width=512, height=384, name=SCENES[0], path=None,
     from raymitsuba import images
 
     path = path or scene_path(name)
-    print(f"\nanti-aliasing on {name} at {width}x{height}, against a 256-spp and a 1024-spp "
+    print(f"\nanti-aliasing on {name} at {width}x{height}, against a 256-spp and a {TRUTH_SPP}-spp "
           f"render (pixels within 2/255 and 8/255 of each; whole `raymitsuba render` "
           f"processes, median of {repeats}, the variants run round-robin, relative to 1 spp):")
     refs = references(work, path, width, height)
-    r2, r8 = shares(refs[256], refs[1024])
-    print(f"  the 256-spp render against the 1024-spp: {r2:6.2f} % {r8:6.2f} %")
+    r2, r8 = shares(refs[256], refs[TRUTH_SPP])
+    print(f"  the 256-spp render against the {TRUTH_SPP}-spp: {r2:6.2f} % {r8:6.2f} %")
     rows = []
     variants = [("1 spp", ("--spp", 1)), ("4 spp", ("--spp", 4)), ("16 spp", ("--spp", 16))]
     variants += [(f"--aa {t}".strip(), ("--aa", t) if t else ("--aa",)) for t in AA_THRESHOLDS]
@@ -340,9 +349,9 @@ def aa_section(work, repeats, width=512, height=384, name=SCENES[0], path=None,
     for (label, _), out, times in zip(variants, outs, runs):
         image = np.load(out)
         rows.append((label, median([r[0] for r in times]), median([r[1] for r in times]),
-                     *shares(image, refs[256]), *shares(image, refs[1024])))
+                     *shares(image, refs[256]), *shares(image, refs[TRUTH_SPP])))
     base_wall, base_cpu = rows[0][1], rows[0][2]
-    print("                        vs 256 spp         vs 1024 spp")
+    print(f"                        vs 256 spp         vs {TRUTH_SPP} spp")
     for label, wall_s, cpu_s, *within in rows:
         print(f"  raymitsuba {label:12} {within[0]:6.2f} % {within[1]:6.2f} %   {within[2]:6.2f} % "
               f"{within[3]:6.2f} %   time x{wall_s / base_wall:5.2f} (cpu x{cpu_s / base_cpu:5.2f};"
@@ -354,7 +363,7 @@ def aa_section(work, repeats, width=512, height=384, name=SCENES[0], path=None,
     print(f"  --aa / 1 spp, whole process: wall x{median([p[0] for p in paired]):.2f}, cpu "
           f"x{median([p[1] for p in paired]):.2f} (median of the rounds' ratios; within "
           f"2/255 and 8/255: {rows[aa][3]:.2f} %, {rows[aa][4]:.2f} % of the 256-spp render, "
-          f"{rows[aa][5]:.2f} %, {rows[aa][6]:.2f} % of the 1024-spp)")
+          f"{rows[aa][5]:.2f} %, {rows[aa][6]:.2f} % of the {TRUTH_SPP}-spp)")
     cold = []
     for label, cmd in (("1 spp", cmds[0]), ("--aa", cmds[aa])):
         home = tempfile.mkdtemp(prefix="home-", dir=work)  # an empty Dr.Jit kernel cache
@@ -396,14 +405,15 @@ def aa_section(work, repeats, width=512, height=384, name=SCENES[0], path=None,
 def aa_gallery_section(work, repeats, width=512, height=384, names=AA_GALLERY):
     """``--aa`` on gallery scenes that no benchmark tunes for: per scene the median of
     ``repeats`` rounds' whole-process ratio --aa / 1 spp (wall, cpu), and --aa's shares
-    within 2/255 and 8/255 of the 1024-spp render."""
+    within 2/255 and 8/255 of the TRUTH_SPP render."""
     import numpy as np
 
     print(f"\n--aa on the gallery's scenes at {width}x{height} (whole processes, median of "
-          f"{repeats} rounds' ratios --aa / 1 spp; within 2/255 and 8/255 of a 1024-spp render):")
+          f"{repeats} rounds' ratios --aa / 1 spp; within 2/255 and 8/255 of a {TRUTH_SPP}-spp "
+          "render):")
     for name in names:
         path = scene_path(name)
-        truth = references(work, path, width, height, (1024,))[1024]
+        truth = references(work, path, width, height, (TRUTH_SPP,))[TRUTH_SPP]
         out = os.path.join(work, "gallery.npy")
         cmds = [render_cmd(path, out, "--width", width, "--height", height, *args)
                 for args in (("--spp", 1), ("--aa",))]
