@@ -14,7 +14,7 @@ STOP = 0xFFFFFFFE  # a chain that ended (a surface neither mirror nor glass)
 LIT = 0xFFFFFFFD  # a shadow edge's key where its light lights the sample (shadow_key)
 KINDS = 7  # kinds of pairs:
 VISIBILITY, SHADOW, CHECKER, CHAIN_VISIBILITY, CHAIN_CHECKER, CHAIN_TIR, CHAIN_SHADOW = range(KINDS)
-POINTS = ("L", "R", "LA", "RA", "LB", "RB")  # a pair's samples and their neighbours across
+POINTS = ("L", "R")  # a pair's samples
 # The chain's keys of a sample whose chain ended before a bounce (those of the first hit are
 # set for every sample): what a bounce past a chain's end holds
 DEFAULT = {"chain_shape": STOP, "chain_prim": 0, "chain_t": np.inf, "chain_normal": 0.0,
@@ -100,12 +100,6 @@ def ring_points(width, height, k):
     x = np.concatenate([np.arange(cols), np.arange(cols), np.zeros(rows - 2, np.int64),
                         np.full(rows - 2, cols - 1)])
     return y, x
-
-
-def span(a, b):
-    """Lattice units between two lattice points (y, x) that lie on one row or column (numpy;
-    at least 1)."""
-    return np.maximum(np.abs(a[0] - b[0]) + np.abs(a[1] - b[1]), 1)
 
 
 def lattice_side(spp):

@@ -61,7 +61,7 @@ class Pairs:
         samples differ in some key (a few percent of the lattice; every other pair has no
         edge between), found by one pass of comparisons over the lattice."""
         found = []
-        rows, cols = self.t.shape
+        cols = self.t.shape[1]
         bounces = self.chain_bounces()
         for axis in (1, 0):  # rows (X, X + 1), then columns (Y, Y + 1)
             ly, lx = self.candidates(axis, bounces)
@@ -79,17 +79,7 @@ class Pairs:
                 keep[where] = self.moving_edges(kind[where], light[where],
                                                 flat(L, cols)[where], flat(R, cols)[where])
             ly, lx = ly[keep], lx[keep]
-            ry, rx = ly + (axis == 0), lx + (axis == 1)
-            # the neighbours of L and R across the axis, either side (one side at the border):
-            # they give the edge's normal at the crossing (centred differences)
-            if axis == 1:
-                beside = [(np.minimum(y + 1, rows - 1), x) for y, x in ((ly, lx), (ry, rx))] \
-                    + [(np.maximum(y - 1, 0), x) for y, x in ((ly, lx), (ry, rx))]
-            else:
-                beside = [(y, np.minimum(x + 1, cols - 1)) for y, x in ((ly, lx), (ry, rx))] \
-                    + [(y, np.maximum(x - 1, 0)) for y, x in ((ly, lx), (ry, rx))]
-            points = dict(L=(ly, lx), R=(ry, rx), LA=beside[0], RA=beside[1], LB=beside[2],
-                          RB=beside[3])
+            points = dict(L=(ly, lx), R=(ly + (axis == 0), lx + (axis == 1)))
             found.append(dict(axis=np.full(len(ly), axis), kind=kind[keep].astype(np.int64),
                               light=light[keep].astype(np.int64), shared=shared[keep],
                               depth=depth[keep].astype(np.int64), **points))

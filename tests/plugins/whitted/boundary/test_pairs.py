@@ -163,4 +163,7 @@ def test_edges_that_no_key_moves_form_no_pairs_and_add_nothing(mi, monkeypatch):
             assert np.any(~first)  # (the chain's: kept)
     assert counts[0] < counts[1] / 4
     assert np.all(grads[0] != 0.0)
-    np.testing.assert_allclose(grads[0], grads[1], rtol=1e-5)
+    # (to float32's order of the largest component: the sums' rounding is that of the terms
+    # they add, not of a component that nearly cancels, -0.0024 against 1.04)
+    np.testing.assert_allclose(grads[0], grads[1], rtol=1e-5,
+                               atol=1e-5 * np.abs(grads[1]).max())

@@ -62,13 +62,13 @@ def test_the_primal_image_does_not_change_by_a_bit(mi):
     assert np.array_equal(attached.numpy().astype(np.float64), plain)
 
 
-def test_slope_across_reads_the_side_where_g_is_defined(mi):
-    from raymitsuba.plugins.whitted.boundary.terms import slope_across
+def test_the_slope_across_reads_the_side_where_g_is_defined(mi):
+    from raymitsuba.plugins.whitted.boundary.terms import one_or_both
 
     nan = float("nan")
-    at_l = np.array([1.0, nan, 1.0, nan, np.inf])
-    at_r = np.array([3.0, 3.0, nan, nan, 3.0])
-    np.testing.assert_array_equal(slope_across(0.25, at_l, at_r), [1.5, 3.0, 1.0, 0.0, 3.0])
+    below = np.array([1.0, nan, 1.0, nan, np.inf])
+    above = np.array([3.0, 3.0, nan, nan, 3.0])
+    np.testing.assert_array_equal(one_or_both(below, above), [2.0, 3.0, 1.0, 0.0, 3.0])
 
 
 # A sphere on a lit floor (examples/fit_shape.py's scene: SHADOW's, seen and lit as there)
