@@ -8,7 +8,7 @@
 #    translation, load and render stages, the whole `raymitsuba render` process and
 #    POV-Ray 3.7's on the same scene (scale_bench.py; POV-Ray is skipped if not installed).
 # 2. The parser's throughput, and on the scale ladder's simple lines against 10^6 lines/s.
-# 3. `--aa` against 1 spp, and against a 256-spp and a 1024-spp reference, on the
+# 3. `--aa` against 1 spp, and against a 256-spp reference and a 987-spp truth, on the
 #    benchmark's reflective scene, scenes/aa_showcase.ray (not the benchmark's), a generated
 #    fine-detail scene and four gallery scenes.
 # 4. Depth 64 at 1024x768 against POV-Ray and the exact tree.

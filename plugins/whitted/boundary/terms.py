@@ -243,7 +243,10 @@ class Terms:
         along = np.where(bracket, (gp - gm) / (2.0 * eps), gr - gl)  # dg per lattice unit
         w = np.where(bracket, np.clip(w - eps + 2.0 * eps * gm / np.where(bracket, gm - gp, 1.0),
                                       0.0, 1.0), w)
-        across = self.slope_across(terms, L, axis, w, eps, 0.5 * (gm + gp), crossing)
+        # (g at the crossing: 0 where gm and gp bracket it, which placed it there; else their
+        # mean, at the crossing's linear estimate, which stays)
+        across = self.slope_across(terms, L, axis, w, eps,
+                                   np.where(bracket, 0.0, 0.5 * (gm + gp)), crossing)
         normal2 = along ** 2 / np.maximum(along ** 2 + across ** 2, 1e-30)
         df = self.jump(ends, axis, w, kind, light, pairs["depth"][sl],
                        self.followed(ends, kind, choices), pairs["shared"][sl])
@@ -318,9 +321,10 @@ class Terms:
     def slope_across(self, terms, L, axis, w, eps, g_star, crossing):
         """g's slope across each pair's axis at its crossing (a fraction ``w`` of the way from
         L along ``axis``; ``g_star``, numpy, g there): g at the two points ``eps`` lattice
-        units either side of the crossing across the axis, detached -- the slope along the
-        axis is measured there too, at the same scale, so the edge's normal is g's gradient
-        at one point. (It was the centred differences at L and R, two lattice units wide,
+        units either side of the crossing across the axis, detached -- where g's points
+        along the axis bracket the crossing, its slope along the axis is measured there too,
+        at the same scale, so the edge's normal is g's gradient at one point (elsewhere that
+        slope is L's and R's secant). (It was the centred differences at L and R, two lattice units wide,
         interpolated: where edges crowd, a shadow seen in a mirror ball near its rim, g's
         gradient changes within a lattice unit, and those normals weighed the rows' and the
         columns' terms wrongly; seed 5's fov, random_edges.py, k = 16: a change of fov moves

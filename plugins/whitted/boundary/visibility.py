@@ -146,8 +146,8 @@ class Visibility:
         thin faces L sees while R's line misses that face beyond the floor) then has the
         crease's g, whose normal and rate are the crease's, not those of the face's own
         edge that the line crosses past where it dips under the floor. (Not a sphere: its
-        distance is its own only where a ray meets it, and the crease's g is read at L's
-        and R's neighbours too, for the edge's normal, where one may miss it: a sphere
+        distance is its own only where a ray meets it, and the crease's g is read beside the
+        crossing too, for the edge's normal, where a ray may miss it: a sphere
         through a cylinder keeps the outline's g, as before.)"""
         c_l, c_r = (self.crease(table, rays, near, far) for rays in ends)
         w = c_l / (c_l - c_r)  # where the crease's g is zero, from L to R

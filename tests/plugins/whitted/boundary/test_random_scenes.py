@@ -29,7 +29,10 @@ CASES = [
     ("translate.offset", 6, 8),  # 2.0 % at k = 4, 0.3 % at k = 8
     ("rotate.angle", 42, 16),  # 7.9 % at k = 4, 2.2 % at k = 8, 0.7 % at k = 16
     ("scale.factors", 4, 4),  # 0.4 %
-    ("triangle.v", 6, 4),  # 1.9 %
+    # 2.8 % (1.9 % with the normal from L's and R's neighbours: the tip of a triangle's
+    # shadow seen through a glass box, a wedge thinner than a lattice unit that one row pair
+    # meets, docs/gradients.md)
+    ("triangle.v", 6, 4),
     ("sphere.center", 1, 4),  # 0.4 %
     # (seed 11, the first valid: a sphere 0.007 above the floor, which the FD's step of
     # 0.066 pushes through it -- a crease the derivative at the key's value has not; 15 %
