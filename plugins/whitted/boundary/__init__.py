@@ -108,9 +108,9 @@ samples:
   reflection switches at a surface of the chain, the refraction margin 1 - (eta_i /
   eta_t)^2 (1 - cos^2 theta_i) there.
 
-g is evaluated at the two samples L, R, detached. Where L and R see one face of one shape (every kind but a
-visibility edge of the surface seen), each of these rays' hits is solved on that face, not
-traced (:meth:`Boundary.hits_at`, ``HitTable.known_hits``): g is then that surface's own
+g is evaluated at the two samples L, R, detached. Where L and R see one face of one shape
+(every kind but a visibility edge of the surface seen), each of these rays' hits is solved
+on that face, not traced (:meth:`Boundary.hits_at`, ``HitTable.known_hits``): g is then that surface's own
 function, smooth where another surface hides a neighbour or the face ends (the camera's
 per-pixel error at k = 4 on benchmarks/edges_bench.py's scene: eye 10.4 -> 9.6 %, fov 8.2 ->
 7.2 %; and a fifth of the boundary pass's kernel time). With g linear between L and R the crossing lies at the fraction

@@ -324,15 +324,15 @@ class Terms:
         units either side of the crossing across the axis, detached -- where g's points
         along the axis bracket the crossing, its slope along the axis is measured there too,
         at the same scale, so the edge's normal is g's gradient at one point (elsewhere that
-        slope is L's and R's secant). (It was the centred differences at L and R, two lattice units wide,
-        interpolated: where edges crowd, a shadow seen in a mirror ball near its rim, g's
-        gradient changes within a lattice unit, and those normals weighed the rows' and the
-        columns' terms wrongly; seed 5's fov, random_edges.py, k = 16: a change of fov moves
-        each point of the image at a velocity known in closed form, and that shadow's pairs'
-        rates along their axes came out 0.09 times what it gives along the normals their
-        slopes made, at the median; 0.99 now.) A side whose
-        ray sees nothing g reads, where it is undefined, is left out (one-sided); both: 0,
-        the edge taken across the axis (``test_a_neighbour_that_sees_nothing_leaves_the_
+        slope is L's and R's secant). (It was the centred differences at L and R, two
+        lattice units wide, interpolated: where edges crowd, a shadow seen in a mirror ball
+        near its rim, g's gradient changes within a lattice unit, and those normals weighed
+        the rows' and the columns' terms wrongly; seed 5's fov, random_edges.py, k = 16: a
+        change of fov moves each point of the image at a velocity known in closed form, and
+        that shadow's pairs' rates along their axes came out 0.09 times what it gives along
+        the normals their slopes made, at the median; 0.99 now.) A side whose ray sees
+        nothing g reads, where it is undefined, is left out (one-sided); both: 0, the edge
+        taken across the axis (``test_a_neighbour_that_sees_nothing_leaves_the_
         derivative_finite``)."""
         y, x = self.along_axis(L, axis, w)
         shifts = [(np.where(axis == 1, y + side * eps, y), np.where(axis == 1, x, x + side * eps))
@@ -430,10 +430,16 @@ class Terms:
         # rim holds what lies behind it, unfolded): an edge in that band, between the
         # crossing and the sample, is no pair's, and moves with the outline. (Where the
         # sides were traced again at the switch, below, their paths there.)
+        def squeezed(paths, s, which):
+            """Whether the near sides ``near[s][which]`` traced with ``paths`` differ from
+            their samples past their bounce, or were followed to a mesh's outline."""
+            entries = near[s][which]
+            return paths.differs(self.path_at((ends.l, ends.r)[s][entries]),
+                                 near_past[s][which]) | followed[entries]
+
         off = [np.zeros(0, bool)] * 2
         if len(visible):
-            off = [sides.paths[s].differs(self.path_at(end[near[s]]), near_past[s])
-                   | followed[near[s]] for s, end in enumerate((ends.l, ends.r))]
+            off = [squeezed(sides.paths[s], s, slice(None)) for s in (0, 1)]
         if len(keyed):
             key_l, key_r = (self.edge_key(end[keyed], *edge) for end in (ends.l, ends.r))
             lost = np.flatnonzero((keys[0] != key_l) | (keys[1] != key_r))
@@ -449,12 +455,9 @@ class Terms:
                     paths=[np.searchsorted(pairs, near[s][again[s]]) for s in (0, 1)]
                     if len(visible) else None)
                 colors[:, pairs] = switched.colors
-                for s, end in enumerate((ends.l, ends.r)):
+                for s in (0, 1):
                     if len(again[s]):
-                        entries = near[s][again[s]]
-                        off[s][again[s]] = switched.paths[s].differs(
-                            self.path_at(end[entries]), near_past[s][again[s]]) \
-                            | followed[entries]
+                        off[s][again[s]] = squeezed(switched.paths[s], s, again[s])
         if shared is not None and len(visible):
             # (not an entry of a pair across several edges: the sample's color would carry
             # the others' jumps, which their own entries count)
