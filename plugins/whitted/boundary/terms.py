@@ -607,13 +607,18 @@ class Terms:
         What such a mirror or glass shows near its rim is squeezed into a band there, and
         with an outline seen past it, the look of the outlined surface itself: its
         terminator, a shadow on it (:meth:`Terms.jump`); a flat mirror only reflects them."""
-        shapes = np.concatenate([at(self.shape, flat_points)[:, None], paths.shapes], 1)
-        known = shapes < len(self.kind_of)  # (not NO_HIT nor STOP)
-        kinds = self.kind_of[np.where(known, shapes, 0)]
-        curved = known & ((kinds & (SPHERE | SMOOTH)) != 0)
-        # (column 0 the first hit, column b + 1 the chain's bounce b: those before ``past``)
-        before = np.arange(shapes.shape[1]) <= past[:, None]
-        return np.any(curved & before, axis=1) & (past >= 0)
+        out = np.zeros(len(past), bool)
+        chain = np.flatnonzero(past >= 0)  # (only these have a bounce before theirs)
+        if len(chain):
+            shapes = np.concatenate([at(self.shape, flat_points[chain])[:, None],
+                                     paths.shapes[chain]], 1)
+            known = shapes < len(self.kind_of)  # (not NO_HIT nor STOP)
+            kinds = self.kind_of[np.where(known, shapes, 0)]
+            curved = known & ((kinds & (SPHERE | SMOOTH)) != 0)
+            # (column 0 the first hit, column b + 1 the chain's bounce b: those before past)
+            before = np.arange(shapes.shape[1]) <= past[chain, None]
+            out[chain] = np.any(curved & before, axis=1)
+        return out
 
     def path_at(self, flat_points):
         """The :class:`Path` s of the lattice's samples at ``flat_points``, as it holds them."""
