@@ -402,10 +402,12 @@ class Terms:
         compared past bounce d (the bounces after it), and in the lights at bounce d too where
         the ray met a curved surface before d (:meth:`curved_before`): seen in a mirror ball
         near its rim, the outlined surface's terminator is squeezed into the band with the
-        rest (random scene 30's translate, a cone's outline seen in a mirror ball: 0.4 / 2.1
-        / 3.8 % of Sum |w FD| at k = 8 / 16 / 32, growing with k, now 2.2 / 1.1 / 0.09 %);
-        in a flat mirror it is only foreshortened, as on the surface seen (seed 28's look-at,
-        a mirror floor: 2.6 % at k = 8 either way, 5.5 % with the lights counted there too).
+        rest (random scene 30's translate, a cone's outline seen in a mirror ball, against
+        benchmarks/random_edges.py's reference: 0.5 / 2.0 / 3.7 % of Sum |w FD| at k = 8 / 16 /
+        32, growing with k, now 2.3 / 1.2 / 0.19 %, worse at k = 8 where a lattice unit holds
+        the band); in a flat mirror it is only foreshortened, as on the surface seen (seed
+        28's look-at, a mirror floor: 2.6 % at k = 8 either way, 5.5 % with the lights counted
+        there too).
         Where its sides
         were traced again at the switch, their paths there are compared (a glass ball seen
         in a mirror floor, seed 4's look-at: the switch's side on the ball's rim sees what
@@ -444,11 +446,11 @@ class Terms:
             """Whether the near sides ``near[s][which]`` traced with ``paths`` differ from
             their samples past their bounce (and in the lights at it, seen past a curved
             surface), or were followed to a mesh's outline."""
-            entries = near[s][which]
-            samples, past = (ends.l, ends.r)[s][entries], near_past[s][which]
-            held = self.path_at(samples)
-            lights_past = np.where(self.curved_before(samples, held, past), past - 1, past)
-            return paths.differs(held, past, lights_past) | followed[entries]
+            entries, bounce = near[s][which], near_past[s][which]
+            held = self.path_at((ends.l, ends.r)[s][entries])
+            lights_past = np.where(self.curved_before(ends.shape[s][entries], held, bounce),
+                                   bounce - 1, bounce)
+            return paths.differs(held, bounce, lights_past) | followed[entries]
 
         off = [np.zeros(0, bool)] * 2
         if len(visible):
@@ -599,19 +601,20 @@ class Terms:
                                                          np.full(2, NO_HIT))  # (past the end)
         return Traced(colors, shapes, normals, out.reshape(sets, len(keyed)), found)
 
-    def curved_before(self, flat_points, paths, past):
-        """Per sample (lattice points ``flat_points``, their :class:`Path` s ``paths``),
+    def curved_before(self, first, paths, past):
+        """Per sample (the shapes of its first hit ``first`` and its :class:`Path` ``paths``),
         whether its ray met a curved surface (an analytic sphere or ellipsoid, or a smooth
         mesh: HitTable's SPHERE, SMOOTH) as its first hit or at a bounce of its chain before
         bounce ``past`` (per sample; -1: none).
         What such a mirror or glass shows near its rim is squeezed into a band there, and
         with an outline seen past it, the look of the outlined surface itself: its
-        terminator, a shadow on it (:meth:`Terms.jump`); a flat mirror only reflects them."""
+        terminator, a shadow on it (:meth:`Terms.jump`); a flat mirror only reflects them.
+        (Decided by shape: a smooth mesh's flat faces, a mirror cylinder's caps, count as
+        curved.)"""
         out = np.zeros(len(past), bool)
         chain = np.flatnonzero(past >= 0)  # (only these have a bounce before theirs)
         if len(chain):
-            shapes = np.concatenate([at(self.shape, flat_points[chain])[:, None],
-                                     paths.shapes[chain]], 1)
+            shapes = np.concatenate([first[chain, None], paths.shapes[chain]], 1)
             known = shapes < len(self.kind_of)  # (not NO_HIT nor STOP)
             kinds = self.kind_of[np.where(known, shapes, 0)]
             curved = known & ((kinds & (SPHERE | SMOOTH)) != 0)
