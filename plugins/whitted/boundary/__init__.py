@@ -110,12 +110,13 @@ samples:
 
 g is evaluated at the two samples L, R, detached. Where L and R see one face of one shape
 (every kind but a visibility edge of the surface seen), each of these rays' hits is solved
-on that face, not traced (:meth:`Boundary.hits_at`, ``HitTable.known_hits``): g is then that surface's own
-function, smooth where another surface hides a neighbour or the face ends (the camera's
-per-pixel error at k = 4 on benchmarks/edges_bench.py's scene: eye 10.4 -> 9.6 %, fov 8.2 ->
-7.2 %; and a fifth of the boundary pass's kernel time). With g linear between L and R the crossing lies at the fraction
-w = g_L / (g_L - g_R) of the way from L to R. Where edges crowd, g is seldom linear over a
-lattice unit (a checker seen through a glass ball's rim, compressed), so g is evaluated
+on that face, not traced (:meth:`Boundary.hits_at`, ``HitTable.known_hits``): g is then
+that surface's own function, smooth where another surface hides a neighbour or the face ends
+(the camera's per-pixel error at k = 4 on benchmarks/edges_bench.py's scene: eye 10.4 ->
+9.6 %, fov 8.2 -> 7.2 %; and a fifth of the boundary pass's kernel time). With g linear
+between L and R the crossing lies at the fraction w = g_L / (g_L - g_R) of the way from L to
+R. Where edges crowd, g is seldom linear over a lattice unit (a checker seen through a glass
+ball's rim, compressed), so g is evaluated
 again, with derivatives (the camera's rays and the geometry as the keys attach them,
 ``geometry_ad.py``; the lights' own parameters), at two points either side of that
 estimate, a quarter of its distance to the nearer sample away. The crossing moves at
@@ -241,3 +242,10 @@ class Boundary(Samples, Pairs, Terms, Visibility, Shadows, Checker, Chain, Tir, 
         self.chain_shape, self.chain_prim, self.chain_t, self.chain_cell = [], [], [], []
         self.chain_tir, self.chain_lit, self.chain_occluder, self.chain_stopper = [], [], [], []
         self.chain_normal = []
+
+    def kinds(self, shapes):
+        """HitTable's kind bits (MESH, SMOOTH, SPHERE, ...) of the shapes ``shapes`` (numpy
+        registry ids, as the lattice holds them): 0 for NO_HIT, STOP and any id the table
+        does not hold."""
+        known = shapes < len(self.kind_of)
+        return np.where(known, self.kind_of[np.where(known, shapes, 0)], 0)

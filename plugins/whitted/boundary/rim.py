@@ -58,12 +58,10 @@ class Rim:
         near_l = ends.t[0] <= ends.t[1]
         inside = tuple(np.where(near_l, a, b) for a, b in zip(ends.L, ends.R))
         shape = np.where(near_l, *ends.shape)
-        kind_of = self.kind_of
         sphere = (kind == VISIBILITY) & (shape != NO_HIT) & (normal2 > 0)
         if not self.camera_moves:  # (a sphere that stays, seen by a still camera)
             sphere &= self.moves(shape)
-        sphere &= (kind_of[np.minimum(np.where(shape == NO_HIT, 0, shape), len(kind_of) - 1)]
-                   & SPHERE) != 0
+        sphere &= (self.kinds(shape) & SPHERE) != 0
         # the row goes on inside: the next sample away from the rim sees the same sphere
         step = np.where(near_l, -1, 1)
         rows, cols = self.shape.shape

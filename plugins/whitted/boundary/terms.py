@@ -407,12 +407,10 @@ class Terms:
         32, growing with k, now 2.3 / 1.2 / 0.19 %, worse at k = 8 where a lattice unit holds
         the band); in a flat mirror it is only foreshortened, as on the surface seen (seed
         28's look-at, a mirror floor: 2.6 % at k = 8 either way, 5.5 % with the lights counted
-        there too).
-        Where its sides
-        were traced again at the switch, their paths there are compared (a glass ball seen
-        in a mirror floor, seed 4's look-at: the switch's side on the ball's rim sees what
-        the rim refracts, squeezed; k = 4 / 8, 2.4 / 2.1 % of the sum of sizes off, 0.9 /
-        0.2 % with the rule)."""
+        there too). Where its sides were traced again at the switch, their paths there are
+        compared (a glass ball seen in a mirror floor, seed 4's look-at: the switch's side on
+        the ball's rim sees what the rim refracts, squeezed; k = 4 / 8, 2.4 / 2.1 % of the sum
+        of sizes off, 0.9 / 0.2 % with the rule)."""
         count = len(kind)
         rim = max(RIM_LIMIT, FILM_ULPS * self.k * max(self.width, self.height) * 2.0 ** -24)
         limit = np.where(kind == VISIBILITY, rim, LIMIT)
@@ -499,7 +497,7 @@ class Terms:
         same = (sides.shapes[0] == ends.shape[0]) & (sides.shapes[1] == ends.shape[1])
         for side, (shape, end) in enumerate(zip(ends.shape, (ends.l, ends.r))):
             mesh = np.flatnonzero(same & (shape != NO_HIT))
-            mesh = mesh[self.kind_of[np.minimum(shape[mesh], len(self.kind_of) - 1)] & MESH != 0]
+            mesh = mesh[self.kinds(shape[mesh]) & MESH != 0]
             n = np.stack([at(c, end[mesh]) for c in self.normal], -1)
             same[mesh[across_crease(n, sides.normals[side, mesh])]] = False
         return same
@@ -615,9 +613,7 @@ class Terms:
         chain = np.flatnonzero(past >= 0)  # (only these have a bounce before theirs)
         if len(chain):
             shapes = np.concatenate([first[chain, None], paths.shapes[chain]], 1)
-            known = shapes < len(self.kind_of)  # (not NO_HIT nor STOP)
-            kinds = self.kind_of[np.where(known, shapes, 0)]
-            curved = known & ((kinds & (SPHERE | SMOOTH)) != 0)
+            curved = (self.kinds(shapes) & (SPHERE | SMOOTH)) != 0
             # (column 0 the first hit, column b + 1 the chain's bounce b: those before past)
             before = np.arange(shapes.shape[1]) <= past[chain, None]
             out[chain] = np.any(curved & before, axis=1)

@@ -53,13 +53,12 @@ class Visibility:
         chain), or a face of a smooth mesh across a crease (a tessellated cylinder's or
         cone's cap and side: one mesh, whose vertex normals jump at the rim, and the shading
         with them), where the faces' normals differ by more than CREASE."""
-        kind_of = self.kind_of
         sl, sr = at(shape, L), at(shape, R)
         differs = sl != sr
         faces = ~differs & (sl < STOP) & (at(prim, L) != at(prim, R))
         if not faces.any():
             return differs
-        kind = kind_of[np.minimum(sl[faces], len(kind_of) - 1)]
+        kind = self.kinds(sl[faces])
         mesh, smooth = kind & MESH != 0, kind & SMOOTH != 0
         where = np.flatnonzero(faces)[mesh]
         nl, nr = (np.stack([at(c, side[where]) for c in normal], -1) for side in (L, R))

@@ -127,8 +127,8 @@ def test_an_outline_seen_in_a_flat_mirror_keeps_its_sides_color_where_its_light_
     spotlight) at k = 8: a flat mirror does not squeeze what it reflects, so a terminator near
     an outline seen in it is foreshortened, as on a surface seen directly, and the rule above
     applies only past a curved surface (Terms.curved_before). Measured against this
-    module's reference: 2.6 % of Sum |w FD|;
-    5.6 % with the lights at the outline's bounce counted past any mirror; allowed 4 %."""
+    module's reference: 2.6 % of Sum |w FD|; 5.6 % with the lights at the outline's bounce
+    counted past any mirror; allowed 4 %."""
     error = weighted_error(*derivative_and_reference(mi, 28, "camera.lookat", 8))
     assert error < 0.04, error
 
