@@ -347,7 +347,10 @@ class Terms:
     def crossing(self, table, terms, ray, si, ends, kind, light, line, choices):
         """g at the stacked rays ``ray`` (see g_at), hitting ``si`` (a Float, attached)."""
         left, right = ((ends.shape[i], ends.prim[i], ends.t[i]) for i in (0, 1))
-        choice = self.visibility(table, ray, left, right, choices, "first")
+        # (the visibility edges' g; none among the pairs, as where only a light moves: zero,
+        # which the other kinds' replace)
+        choice = self.visibility(table, ray, left, right, choices, "first") \
+            if (kind == VISIBILITY).any() else dr.zeros(mi.Float, dr.width(ray.d))
         if (kind == SHADOW).any():
             blockers = self.blockers(self.occluder, self.stopper, light, ends.l, ends.r)
             choice = self.shadow_crossing(table, ray, si, light, blockers, kind == SHADOW, choice,
