@@ -13,8 +13,10 @@ lattice (spp = k_FD^2) with the step h / 2, h moving the nearest edges by about 
 pixel (:func:`step`), validated against the same at h, and that against k_FD / 2 at h (the
 FD's uncertainty: the larger difference; the same renders and checks as before, so the
 same cases are flagged); AD is forward mode on the k x k lattice for each k asked for. The
-errors are also given against the extrapolated reference, 2 FD(h / 2) - FD(h) (Richardson's:
-it cancels the part of the step's error proportional to the step, the renders the same).
+errors are also given against the extrapolated reference, 2 FD(h / 2) - FD(h) (Richardson's,
+from the same renders; relative to the same |Sum w FD| and Sum |w FD|): it differs from
+the reference by FD(h / 2) - FD(h), which the validation bounds in every case it counts, so
+it tells something only of the cases flagged for it.
 (The reference was the step h until 2026-12-07: where an edge moves faster than the nearest
 one, or runs by a pixel's border, a pixel's difference at h is off by up to
 half of it, and the weighted sum by a point or more of Σ |w FD|: docs/gradients.md, "The
@@ -364,16 +366,11 @@ def compare(mi, s, kind, size, fd_k, ks, reverse_check=False):
     elif out["fd_kink"] > FD_KINK:
         out["flag"] = f"FD one-sided (a kink: {out['fd_kink']:.2%} of sum abs(w FD))"
     out["rel_counted"] = unc / abs(fd_sum) <= FD_UNSTABLE
-    # the extrapolated reference (Richardson's, from the same two steps): where the image's
-    # derivative is not smooth in the key -- a shaded sphere's rim, whose shading changes
-    # like the square root of the distance to it, as its radius or centre moves -- the
-    # central difference is off by a term proportional to the step, which this cancels (a
-    # lone shaded ball's radius: -5.98 / -5.83 / -5.75 at h, h / 2, h / 4; extrapolated
-    # -5.684, and -5.666 on a lattice twice as fine, where AD converges to -5.665 at k = 16
-    # to 64)
+    # the extrapolated reference, Richardson's from the same two steps (where the image is not
+    # smooth in the key, a shaded sphere's rim, the central difference's error is
+    # proportional to its step: docs/gradients.md, "The reference's step, in the sums")
     extrapolated = 2.0 * fd - whole
     x_sum = float(np.sum(wts * extrapolated))
-    x_size = float(np.sum(np.abs(wts * extrapolated)))
     out["fd_extrapolated_sum"] = x_sum
     errors, errors_x = {}, {}
     for k in ks:
@@ -381,7 +378,7 @@ def compare(mi, s, kind, size, fd_k, ks, reverse_check=False):
         e = abs(float(np.sum(wts * ad)) - fd_sum)
         errors[k] = dict(rel=e / abs(fd_sum), rel_size=e / size_sum, l2=relative_l2(ad, fd))
         e = abs(float(np.sum(wts * ad)) - x_sum)
-        errors_x[k] = dict(rel=e / abs(x_sum) if x_sum else math.inf, rel_size=e / x_size,
+        errors_x[k] = dict(rel=e / abs(x_sum) if x_sum else math.inf, rel_size=e / size_sum,
                            l2=relative_l2(ad, extrapolated))
         if reverse_check and k == ks[0]:
             g = reverse(mi, s.text, key, wts, k * k, **options)
