@@ -24,14 +24,8 @@ image has a kink at the key's value (the weighted second difference above FD_KIN
 first: an edge on the image's border, which moves into it one way only -- a horizon at the
 top row -- where the central difference is the mean of two one-sided derivatives).
 
-**The extrapolated reference.** 2 FD(h / 2) - FD(h), Richardson's from the same renders:
-where the image is not smooth in the key (a shaded sphere's rim as its radius or centre
-moves: the colour there changes like the square root of the distance to the rim) the
-central difference's error is proportional to its step, which this cancels
-(docs/gradients.md, "The reference's step, in the sums"). It differs from the reference by
-FD(h / 2) - FD(h), which the validation bounds in every case it counts: each case's line
-(``--cases``) gives the errors against it ("ext"), which tell something only of the cases
-flagged "FD unstable".
+**The extrapolated reference.** 2 FD(h / 2) - FD(h) (``random_scenes.compare``, which says
+why): each case's line (``--cases``) gives the errors against it too ("ext").
 
 **AD.** Forward mode on the k x k lattice (``--ks``, default 4, 8, 16); once per seed
 (its first key), reverse mode at the first k against forward mode (printed when they

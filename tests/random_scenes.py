@@ -375,14 +375,15 @@ def compare(mi, s, kind, size, fd_k, ks, reverse_check=False):
     errors, errors_x = {}, {}
     for k in ks:
         ad = forward(mi, s.text, key, direction, k * k, **options)
-        e = abs(float(np.sum(wts * ad)) - fd_sum)
+        ad_sum = float(np.sum(wts * ad))
+        e = abs(ad_sum - fd_sum)
         errors[k] = dict(rel=e / abs(fd_sum), rel_size=e / size_sum, l2=relative_l2(ad, fd))
-        e = abs(float(np.sum(wts * ad)) - x_sum)
+        e = abs(ad_sum - x_sum)
         errors_x[k] = dict(rel=e / abs(x_sum) if x_sum else math.inf, rel_size=e / size_sum,
                            l2=relative_l2(ad, extrapolated))
         if reverse_check and k == ks[0]:
             g = reverse(mi, s.text, key, wts, k * k, **options)
             rev = float(np.dot(g, direction))
-            out["reverse_vs_forward"] = abs(rev - float(np.sum(wts * ad))) / size_sum
+            out["reverse_vs_forward"] = abs(rev - ad_sum) / size_sum
     out["errors"], out["errors_extrapolated"] = errors, errors_x
     return out
