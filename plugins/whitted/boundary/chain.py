@@ -131,8 +131,9 @@ class Chain:
         L, R = ends.l, ends.r
         left = tuple(picked(a, d, L) for a in (self.chain_shape, self.chain_prim, self.chain_t))
         right = tuple(picked(a, d, R) for a in (self.chain_shape, self.chain_prim, self.chain_t))
-        vis = self.visibility(table, final_ray, left, right, choices, "chain")
-        g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_VISIBILITY, lanes)), vis, g)
+        if (kind == CHAIN_VISIBILITY).any():  # (none, as where only a light moves: skipped)
+            vis = self.visibility(table, final_ray, left, right, choices, "chain")
+            g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_VISIBILITY, lanes)), vis, g)
         g = dr.select(jit_array(mi.Bool, stacked(kind == CHAIN_TIR, lanes)), margin, g)
         if (kind == CHAIN_CHECKER).any():
             g = self.checker_crossing(terms, final_si, *line, kind == CHAIN_CHECKER, g,
