@@ -60,7 +60,9 @@ class Token(NamedTuple):
 # -- lines -------------------------------------------------------------------------------------
 def split_lines(text: str) -> List[str]:
     """The lines of ``text`` without their line ends."""
-    return text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
+    if "\r" in text:  # (a search is a fraction of a copy: most files have none)
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return text.split("\n")
 
 
 def _split_byte_lines(data: bytes) -> List[bytes]:
