@@ -29,6 +29,8 @@ Parameters:
 * ``surface_of`` (TensorXf, one per primitive): the index of each primitive's surface.
 """
 
+from itertools import repeat
+
 import drjit as dr
 import mitsuba as mi
 import numpy as np
@@ -52,8 +54,8 @@ class SurfaceSet(mi.BSDF):
             else np.zeros(0, np.int64)
         self.table = np.array(table, np.float32)  # host values by row (kept current)
         self.material_ids = ids  # the i of each row's key mat{i}
-        self.row_of = {int(i): m for m, i in enumerate(ids)}  # mat{i}'s row, by i
-        self.rows = tuple(TableRow(self, m) for m in range(len(ids)))
+        self.row_of = dict(zip(ids.tolist(), range(len(ids))))  # mat{i}'s row, by i
+        self.rows = tuple(map(TableRow, repeat(self, len(ids)), range(len(ids))))  # (C loops)
         # The distinct surfaces (shared ones, then the table's rows) and, per primitive, the
         # index of its surface
         self.surfaces = tuple(shared) + self.rows

@@ -357,3 +357,35 @@ def test_a_material_passes_only_the_fields_off_their_default(translate, mitsuba)
                                 "reflectivity", "refractivity", "ior"), values):
             got = float(params[f"{key}.{name}"][0])
             assert got == value and np.copysign(1, got) == np.copysign(1, value), (key, name)
+
+
+def _groups_by_keys(objs):
+    """The grouping Groups makes, computed plainly: (kind, material, texture, checker) keys
+    numbered in order of first use, and each object's number."""
+    numbers = {}
+    group = [numbers.setdefault((o.kind, o.material, o.texture, o.checker), len(numbers))
+             for o in objs]
+    return group, list(numbers)
+
+
+@pytest.mark.parametrize("checkered", [False, True])
+def test_objects_group_by_kind_and_surface_in_order_of_first_use(checkered):
+    """Groups numbers (kind, material, texture, checker) in order of first use, whether no
+    object is textured (its numpy path) or one is (its dict path): a scene mixing kinds and
+    materials, a material used by two kinds and again after others."""
+    from raymitsuba.format.parser import parse_text
+    from raymitsuba.translate import Groups
+
+    text = ("material 1 0 0 1 1 0 1 0 0 1\nsphere\ncone\n"
+            "material 0 1 0 1 1 0 1 0 0 1\ncylinder\nsphere\n"
+            "material 0 0 1 1 1 0 1 0 0 1\ntriangle 0 0 0 1 0 0 0 1 0\nsphere\n"
+            + ("checkerboard 0.5\n" if checkered else "") + "plane\nsphere\n")
+    objs = parse_text(text).objects
+    groups = Groups(objs)
+    group, keys = _groups_by_keys(objs)
+    assert groups.group.tolist() == group and groups.keys == keys
+    # (the last sphere joins the third material's first: 7 groups)
+    assert [(k[0].value, k[1]) for k in groups.keys] == [
+        ("sphere", 1), ("cone", 1), ("cylinder", 2), ("sphere", 2), ("triangle", 3),
+        ("sphere", 3), ("plane", 3)]
+    assert groups.group.tolist()[-1] == 5

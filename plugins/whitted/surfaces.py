@@ -32,7 +32,8 @@ Lights stay unrolled (one shading term per light in the kernel: scenes have a
 handful; see ``SceneTerms``).
 """
 
-from operator import attrgetter, itemgetter
+from itertools import compress, count, repeat
+from operator import attrgetter, is_not, itemgetter
 from typing import NamedTuple
 
 import drjit as dr
@@ -291,8 +292,12 @@ def attached_values(materials):
     """(Parameter name, material index, value) of every material value whose gradient is
     enabled (a value that is None: a table row's, not registered)."""
     values_of, attached = attrgetter(*SURFACE_PARAMETERS), []
-    for m, values in enumerate(map(values_of, materials)):
-        if values[0] is not None and dr.grad_enabled(values):  # (one call: most have none)
+    # (the materials with values found in C loops: a sphere set's 10^5 table rows hold None
+    # until their keys are registered)
+    firsts = list(map(attrgetter(SURFACE_PARAMETERS[0]), materials))
+    for m in compress(count(), map(is_not, firsts, repeat(None))):
+        values = values_of(materials[m])
+        if dr.grad_enabled(values):  # (one call: most have none)
             attached += [(name, m, value) for name, value in zip(SURFACE_PARAMETERS, values)
                          if dr.grad_enabled(value)]
     return attached
