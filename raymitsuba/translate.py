@@ -363,7 +363,8 @@ class Groups:
         """(group, keys) as ``__init__`` makes them, where no object has a texture or a
         checkerboard (the common case, and a generated scene's): the groups are then (kind,
         material) pairs, numbered in numpy (a third of the time of the keys' tuples hashed
-        twice, at 10^5 objects); None otherwise, or where a kind is not an ObjectKind."""
+        twice, at 10^5 objects); None otherwise, or where a kind is not an ObjectKind or a
+        material not an index (the dict's path then groups them as it would anyway)."""
         n = len(objs)
         if list(map(operator.attrgetter("texture"), objs)).count(None) != n or \
                 list(map(operator.attrgetter("checker"), objs)).count(None) != n:
@@ -373,15 +374,22 @@ class Groups:
             kind = np.fromiter(map(_KIND_CODES.__getitem__, map(id, kinds)), np.int64, n)
         except KeyError:
             return None
-        material = np.fromiter(map(operator.attrgetter("material"), objs), np.int64, n)
-        if n and material.min() < 0:
+        materials = list(map(operator.attrgetter("material"), objs))
+        # (each an index, as the parsers make it: a Python int in int64's range, not negative)
+        if not all(map(operator.is_, map(type, materials), repeat(int))):
+            return None
+        try:
+            material = np.fromiter(materials, np.int64, n)
+        except OverflowError:
+            return None
+        if n and (material.min() < 0 or material.max() >= 1 << 32):  # (pairs fit in int64)
             return None
         pair = kind * (int(material.max()) + 1 if n else 1) + material
         _, first, inverse = np.unique(pair, return_index=True, return_inverse=True)
         number = np.empty(len(first), np.int64)  # each pair's group: in order of first use
         number[np.argsort(first, kind="stable")] = np.arange(len(first))
-        firsts = np.sort(first)
-        keys = list(zip(map(kinds.__getitem__, firsts.tolist()), material[firsts].tolist(),
+        firsts = np.sort(first).tolist()
+        keys = list(zip(map(kinds.__getitem__, firsts), map(materials.__getitem__, firsts),
                         repeat(None), repeat(None)))
         return number[inverse.reshape(-1)], keys
 

@@ -376,16 +376,20 @@ def test_objects_group_by_kind_and_surface_in_order_of_first_use(checkered):
     from raymitsuba.format.parser import parse_text
     from raymitsuba.translate import Groups
 
-    text = ("material 1 0 0 1 1 0 1 0 0 1\nsphere\ncone\n"
+    text = ("sphere\nmaterial 1 0 0 1 1 0 1 0 0 1\nsphere\ncone\n"
             "material 0 1 0 1 1 0 1 0 0 1\ncylinder\nsphere\n"
             "material 0 0 1 1 1 0 1 0 0 1\ntriangle 0 0 0 1 0 0 0 1 0\nsphere\n"
             + ("checkerboard 0.5\n" if checkered else "") + "plane\nsphere\n")
     objs = parse_text(text).objects
+    assert (Groups._untextured(objs) is None) == checkered  # (the path taken)
     groups = Groups(objs)
     group, keys = _groups_by_keys(objs)
     assert groups.group.tolist() == group and groups.keys == keys
-    # (the last sphere joins the third material's first: 7 groups)
+    # (the first sphere has the default material, 0; the last joins the third material's
+    # first sphere: 8 groups)
     assert [(k[0].value, k[1]) for k in groups.keys] == [
-        ("sphere", 1), ("cone", 1), ("cylinder", 2), ("sphere", 2), ("triangle", 3),
-        ("sphere", 3), ("plane", 3)]
-    assert groups.group.tolist()[-1] == 5
+        ("sphere", 0), ("sphere", 1), ("cone", 1), ("cylinder", 2), ("sphere", 2),
+        ("triangle", 3), ("sphere", 3), ("plane", 3)]
+    assert groups.group.tolist()[-1] == 6
+    empty = Groups(())
+    assert empty.group.tolist() == [] and empty.keys == []
