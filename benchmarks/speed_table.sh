@@ -1,6 +1,6 @@
 #!/bin/sh
-# The speed figures of README's "Performance" sections in one run, on one machine, each
-# printed under the command that makes it (about 20 minutes on 2 cores):
+# The speed figures of README's "Performance" and docs/performance.md in one run, on one
+# machine, each printed under the command that makes it (about 20 minutes on 2 cores):
 #
 #   sh benchmarks/speed_table.sh 2>&1 | tee speed.txt
 #

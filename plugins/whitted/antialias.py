@@ -36,7 +36,8 @@
    finest grid whose contrast, in multiples of the threshold, its five samples'
    difference exceeds. The ladder (2 x 2 to 12 x 12) is what brings edges of high
    contrast within 2/255 of a 256-sample render (the 8 x 8 and 12 x 12 steps: 94 % to
-   98.5 % of the pixels of the fine-detail benchmark; README, "Anti-aliasing").
+   98.5 % of the pixels of the fine-detail benchmark; docs/performance.md, "Image size,
+   depth and anti-aliasing").
 
 4. A pixel refined for its neighbours (step 2) is given the finest grid, but most such
    pixels turn out flat: before its grid it is traced with a *probe*, the
