@@ -39,11 +39,10 @@ display: then what its whole subtree would have added to its pixel is at most 1/
 subtrees not traced in it (an average of such sums with several samples). Half a step
 (1/510) a subtree was tried first: on whitted.ray at depth 5 several subtrees of one pixel
 add up, and a few pixels moved by just over one step; with a quarter, no image of the
-tests or the gallery moves by more than half a step (docs/performance.md, "Deep trees"). The bound is
-computed anew at every
-render from the scene's current parameters (the limits are data of the kernels, so a new
-bound compiles nothing); a scene whose bound is infinite or not a number (n < 0, an
-infinite texel) is traced exactly.
+tests or the gallery moves by more than half a step (docs/performance.md, "Deep trees").
+The bound is computed anew at every render from the scene's current parameters (the limits
+are data of the kernels, so a new bound compiles nothing); a scene whose bound is infinite
+or not a number (n < 0, an infinite texel) is traced exactly.
 """
 
 from __future__ import annotations
